@@ -1,0 +1,324 @@
+"""Robot model: a thin layer over pinocchio (the seed's "Robot Model").
+
+One :meth:`RobotModel.update` per control step computes everything the control
+primitives need (frame placements, Jacobians and drift terms, mass matrix,
+bias forces, centre of gravity and its Jacobian, centroidal momentum matrix);
+primitives then read those quantities without running pinocchio again.
+
+Conventions (pinocchio's): a floating base is a free-flyer joint whose
+configuration is ``[x, y, z, qx, qy, qz, qw]`` and whose velocity is
+``[v_base (base frame), omega_base (base frame)]``; world-frame quantities of
+frames use ``LOCAL_WORLD_ALIGNED`` (origin of the frame, axes of the world).
+Spatial 6-vectors are ordered ``[linear, angular]``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+
+from hqp.errors import InvalidFrame, InvalidInput, check_array
+
+LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+"""Shorthand for pinocchio's ``LOCAL_WORLD_ALIGNED`` reference frame."""
+
+
+@dataclass(frozen=True)
+class RobotState:
+    """What a robot (real or simulated) reports to the controller each step.
+
+    Attributes:
+        q: Configuration ``(nq,)`` in pinocchio's convention.
+        v: Velocity ``(nv,)`` in pinocchio's convention.
+        t: Time of the measurement [s].
+        contacts: Sensed contact state by contact name (``None``: not sensed).
+        wrenches: Measured contact wrenches ``(6,)`` or forces ``(3,)`` by
+            contact name (``None``: not measured).
+    """
+
+    q: np.ndarray
+    v: np.ndarray
+    t: float = 0.0
+    contacts: Mapping[str, bool] | None = None
+    wrenches: Mapping[str, np.ndarray] | None = field(default=None)
+
+
+class RobotModel:
+    """Kinematics and dynamics of one robot, updated once per control step.
+
+    Args:
+        model: A pinocchio model. Its first joint is a free flyer when
+            ``floating_base`` is true; every other joint has one degree of
+            freedom and is actuated.
+        name: Robot name used in messages.
+        floating_base: Whether the first joint is a free flyer.
+        position_limits: ``(lower, upper)`` over the actuated joints [rad or m]
+            (defaults: the model's limits).
+        velocity_limits: Over the actuated joints [rad/s] (default: model's).
+        torque_limits: Over the actuated joints [N m] (default: model's).
+
+    Raises:
+        InvalidInput: A joint with more than one degree of freedom besides the
+            free flyer, or limits of the wrong shape.
+    """
+
+    def __init__(
+        self,
+        model: pin.Model,
+        *,
+        name: str = "robot",
+        floating_base: bool = True,
+        position_limits: tuple[np.ndarray, np.ndarray] | None = None,
+        velocity_limits: np.ndarray | None = None,
+        torque_limits: np.ndarray | None = None,
+    ) -> None:
+        self.model = model
+        self.data = model.createData()
+        self.name = name
+        self.floating_base = floating_base
+        self.nq = model.nq
+        self.nv = model.nv
+        first = 2 if floating_base else 1
+        if floating_base and model.joints[1].nv != 6:
+            raise InvalidInput(f"RobotModel {name!r}: floating_base but joint 1 is not a free flyer")
+        for j in range(first, model.njoints):
+            if model.joints[j].nv != 1 or model.joints[j].nq != 1:
+                raise InvalidInput(
+                    f"RobotModel {name!r}: joint {model.names[j]!r} has "
+                    f"nq={model.joints[j].nq}, nv={model.joints[j].nv}; only 1-DoF joints "
+                    "besides the free flyer are supported"
+                )
+        self.nq_base = 7 if floating_base else 0
+        self.nv_base = 6 if floating_base else 0
+        self.na = self.nv - self.nv_base
+        self.joint_names: tuple[str, ...] = tuple(model.names[first:])
+        """Actuated joint names, in velocity order."""
+        self.actuated = slice(self.nv_base, self.nv)
+        """Slice of ``v`` (and of ``qdd``) holding the actuated joints."""
+        self.actuated_q = slice(self.nq_base, self.nq)
+        """Slice of ``q`` holding the actuated joints."""
+        self.frame_names: tuple[str, ...] = tuple(f.name for f in model.frames)
+        self._frame_ids = {f.name: i for i, f in enumerate(model.frames)}
+        self.mass = float(sum(inertia.mass for inertia in model.inertias))
+        self.gravity_vector = np.array(model.gravity.linear)
+
+        if position_limits is None:
+            lower = np.array(model.lowerPositionLimit[self.actuated_q])
+            upper = np.array(model.upperPositionLimit[self.actuated_q])
+        else:
+            lower = check_array(position_limits[0], (self.na,), f"RobotModel {name!r}: lower limits")
+            upper = check_array(position_limits[1], (self.na,), f"RobotModel {name!r}: upper limits")
+        if np.any(lower > upper):
+            raise InvalidInput(f"RobotModel {name!r}: a lower position limit exceeds its upper one")
+        self.q_lower = lower
+        self.q_upper = upper
+        self.v_max = (
+            np.array(model.velocityLimit[self.actuated])
+            if velocity_limits is None
+            else check_array(velocity_limits, (self.na,), f"RobotModel {name!r}: velocity limits")
+        )
+        self.tau_max = (
+            np.array(model.effortLimit[self.actuated])
+            if torque_limits is None
+            else check_array(torque_limits, (self.na,), f"RobotModel {name!r}: torque limits")
+        )
+        if np.any(self.v_max < 0) or np.any(self.tau_max < 0):
+            raise InvalidInput(f"RobotModel {name!r}: negative velocity or torque limit")
+
+        self._zero_v = np.zeros(self.nv)
+        self._frame_cache: dict[tuple[int, str], np.ndarray] = {}
+        self.q = pin.neutral(model)
+        self.v = np.zeros(self.nv)
+        self.M = np.zeros((self.nv, self.nv))
+        self.h = np.zeros(self.nv)
+        self.com = np.zeros(3)
+        self.com_velocity = np.zeros(3)
+        self.com_jacobian = np.zeros((3, self.nv))
+        self.com_drift = np.zeros(3)
+        self.centroidal_matrix = np.zeros((6, self.nv))
+        self.centroidal_drift = np.zeros(6)
+        self._g: np.ndarray | None = None
+        self.update(self.q, self.v)
+
+    # -- construction -------------------------------------------------------------------------
+
+    @classmethod
+    def from_urdf(
+        cls,
+        path: str | Path,
+        *,
+        floating_base: bool = True,
+        package_dirs: list[str] | None = None,
+        **kwargs: object,
+    ) -> RobotModel:
+        """Build from a URDF file (free flyer added when ``floating_base``)."""
+        root = pin.JointModelFreeFlyer() if floating_base else None
+        if root is None:
+            model = pin.buildModelFromUrdf(str(path))
+        else:
+            model = pin.buildModelFromUrdf(str(path), root)
+        return cls(model, floating_base=floating_base, **kwargs)  # type: ignore[arg-type]
+
+    @classmethod
+    def from_mjcf(cls, path: str | Path, *, floating_base: bool = True, **kwargs: object) -> RobotModel:
+        """Build from an MJCF file (its free joint becomes pinocchio's free flyer)."""
+        model = pin.buildModelFromMJCF(str(path))
+        return cls(model, floating_base=floating_base, **kwargs)  # type: ignore[arg-type]
+
+    # -- names --------------------------------------------------------------------------------
+
+    def frame_id(self, name: str, where: str = "") -> int:
+        """Index of a frame by name.
+
+        Raises:
+            InvalidFrame: Unknown name; the message lists the frames that exist.
+        """
+        try:
+            return self._frame_ids[name]
+        except KeyError:
+            raise InvalidFrame(name, self.frame_names, where or f"robot {self.name!r}") from None
+
+    def has_frame(self, name: str) -> bool:
+        """Whether a frame of that name exists."""
+        return name in self._frame_ids
+
+    def joint_index(self, name: str) -> int:
+        """Index of an actuated joint in the actuated vector (0 .. na-1).
+
+        Raises:
+            InvalidInput: Unknown joint; the message lists the joints.
+        """
+        try:
+            return self.joint_names.index(name)
+        except ValueError:
+            raise InvalidInput(
+                f"robot {self.name!r}: unknown joint {name!r}; joints: {', '.join(self.joint_names)}"
+            ) from None
+
+    # -- update -------------------------------------------------------------------------------
+
+    def update(self, q: np.ndarray, v: np.ndarray) -> None:
+        """Compute every quantity of a control step at ``(q, v)``.
+
+        Raises:
+            InvalidInput: Wrong shape or non-finite entries.
+        """
+        q = np.asarray(q, dtype=float)
+        v = np.asarray(v, dtype=float)
+        if q.shape != (self.nq,) or v.shape != (self.nv,):
+            raise InvalidInput(
+                f"robot {self.name!r}: state shapes q {q.shape}, v {v.shape}; "
+                f"expected ({self.nq},), ({self.nv},)"
+            )
+        if not (np.isfinite(q).all() and np.isfinite(v).all()):
+            raise InvalidInput(f"robot {self.name!r}: state holds NaN or inf")
+        model, data = self.model, self.data
+        self.q = q.copy()
+        self.v = v.copy()
+        self._frame_cache.clear()
+        self._g = None
+
+        pin.crba(model, data, q)
+        M = data.M
+        self.M = np.triu(M) + np.triu(M, 1).T
+        self.h = pin.nonLinearEffects(model, data, q, v).copy()
+        pin.computeCentroidalMapTimeVariation(model, data, q, v)
+        self.centroidal_matrix = data.Ag.copy()
+        self.centroidal_drift = data.dAg @ v
+        self.com_jacobian = pin.jacobianCenterOfMass(model, data, q, False).copy()
+        # Last: kinematics with zero acceleration, so data.a holds the drift terms.
+        pin.centerOfMass(model, data, q, v, self._zero_v)
+        self.com = data.com[0].copy()
+        self.com_velocity = data.vcom[0].copy()
+        self.com_drift = data.acom[0].copy()
+        pin.computeJointJacobians(model, data)
+        pin.updateFramePlacements(model, data)
+
+    # -- whole-body quantities ----------------------------------------------------------------
+
+    @property
+    def gravity(self) -> np.ndarray:
+        """Generalized gravity ``g(q)`` ``(nv,)`` (computed on first use after an update)."""
+        if self._g is None:
+            self._g = pin.computeGeneralizedGravity(self.model, self.data, self.q).copy()
+            # computeGeneralizedGravity ran kinematics without velocity: restore data.v/data.a.
+            pin.forwardKinematics(self.model, self.data, self.q, self.v, self._zero_v)
+            pin.updateFramePlacements(self.model, self.data)
+        return self._g
+
+    def selection(self) -> np.ndarray:
+        """Actuation selection ``S`` ``(na, nv)``: ``tau_full = S^T tau``."""
+        S = np.zeros((self.na, self.nv))
+        S[:, self.actuated] = np.eye(self.na)
+        return S
+
+    # -- frames -------------------------------------------------------------------------------
+
+    def frame_placement(self, name: str) -> pin.SE3:
+        """World placement ``T_world_frame`` of a frame."""
+        return self.data.oMf[self.frame_id(name)]
+
+    def frame_jacobian(self, name: str, reference: pin.ReferenceFrame = LWA) -> np.ndarray:
+        """Frame Jacobian ``(6, nv)``, rows ``[linear; angular]``."""
+        fid = self.frame_id(name)
+        key = (fid, f"J{int(reference)}")
+        J = self._frame_cache.get(key)
+        if J is None:
+            J = pin.getFrameJacobian(self.model, self.data, fid, reference)
+            self._frame_cache[key] = J
+        return J
+
+    def frame_velocity(self, name: str, reference: pin.ReferenceFrame = LWA) -> np.ndarray:
+        """Frame spatial velocity ``(6,)`` ``[linear; angular]``."""
+        fid = self.frame_id(name)
+        return pin.getFrameVelocity(self.model, self.data, fid, reference).vector
+
+    def frame_drift(self, name: str, reference: pin.ReferenceFrame = LWA) -> np.ndarray:
+        """Classical acceleration of a frame at ``qdd = 0`` ``(6,)`` ``[linear; angular]``.
+
+        With ``J`` the frame Jacobian, the frame's classical acceleration is
+        ``J qdd + frame_drift``.
+        """
+        fid = self.frame_id(name)
+        key = (fid, f"a{int(reference)}")
+        a = self._frame_cache.get(key)
+        if a is None:
+            a = pin.getFrameClassicalAcceleration(self.model, self.data, fid, reference).vector
+            self._frame_cache[key] = a
+        return a
+
+    # -- configuration helpers ----------------------------------------------------------------
+
+    def neutral(self) -> np.ndarray:
+        """Neutral configuration ``(nq,)``."""
+        return pin.neutral(self.model)
+
+    def integrate(self, q: np.ndarray, dv: np.ndarray) -> np.ndarray:
+        """``q (+) dv`` on the configuration manifold."""
+        return pin.integrate(self.model, q, dv)
+
+    def difference(self, q0: np.ndarray, q1: np.ndarray) -> np.ndarray:
+        """Tangent vector ``dv`` with ``q0 (+) dv = q1``."""
+        return pin.difference(self.model, q0, q1)
+
+    def random_configuration(self, rng: np.random.Generator, margin: float = 0.0) -> np.ndarray:
+        """A configuration with actuated joints uniform inside their limits (shrunk by ``margin``).
+
+        The base (if any) is placed at a random position within 1 m of the
+        origin with a random orientation.
+        """
+        q = self.neutral()
+        lo = self.q_lower + margin
+        hi = self.q_upper - margin
+        lo = np.where(np.isfinite(lo), lo, -np.pi)
+        hi = np.where(np.isfinite(hi), hi, np.pi)
+        q[self.actuated_q] = rng.uniform(lo, hi)
+        if self.floating_base:
+            q[:3] = rng.uniform(-1.0, 1.0, 3)
+            quat = rng.normal(size=4)
+            q[3:7] = quat / np.linalg.norm(quat)
+        return q

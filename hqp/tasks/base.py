@@ -1,0 +1,150 @@
+"""What every control primitive shares: its rows, its category, its interface.
+
+A primitive (task) is a pure map from the updated robot state to rows over
+the decision variables ``x = [qdd | contact wrenches]`` (see
+:mod:`hqp.layout`): equality rows ``A x = b`` and/or inequality rows
+``lower <= C x <= upper``. It holds its goal and gains, nothing else: no
+solver handle and no cache keyed on the configuration.
+"""
+
+from __future__ import annotations
+
+import abc
+import enum
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from hqp.errors import InvalidInput
+
+if TYPE_CHECKING:
+    from hqp.layout import Layout
+    from hqp.model import RobotModel
+
+
+class Category(enum.IntEnum):
+    """Default priority categories, highest first (ARCHITECTURE.md, seed Figure 9).
+
+    The first four are the constraint sub-levels; a category is a default
+    level, not a cage: any task may be placed at any level of a stack.
+    """
+
+    PHYSICS = 0
+    """Floating-base dynamics, active contacts, inactive contact slots at zero."""
+    CONTACT_LIMITS = 1
+    """Friction pyramids, unilateral forces, centre of pressure, torque limits."""
+    JOINT_LIMITS = 2
+    """Viable joint position and velocity limits."""
+    COLLISION = 3
+    """Obstacle and self-collision distances."""
+    BALANCE = 4
+    """Centre of gravity, ZMP / centre of pressure, centroidal momentum."""
+    OPERATIONAL = 5
+    """Frame position, orientation, pose, gaze, hybrid force/position, internal forces."""
+    POSTURE = 6
+    """Imitate a captured pose, minimise effort."""
+
+
+@dataclass(frozen=True)
+class Rows:
+    """Rows of one task over the decision vector ``x`` of size ``n``.
+
+    Attributes:
+        A: Equality matrix ``(m_eq, n)`` or ``None``.
+        b: Equality target ``(m_eq,)`` or ``None``.
+        C: Inequality matrix ``(m_in, n)`` or ``None``.
+        lower: Inequality lower bounds ``(m_in,)`` (may hold ``-inf``) or ``None``.
+        upper: Inequality upper bounds ``(m_in,)`` (may hold ``+inf``) or ``None``.
+    """
+
+    A: np.ndarray | None = None
+    b: np.ndarray | None = None
+    C: np.ndarray | None = None
+    lower: np.ndarray | None = None
+    upper: np.ndarray | None = None
+
+    @property
+    def n_eq(self) -> int:
+        """Number of equality rows."""
+        return 0 if self.A is None else self.A.shape[0]
+
+    @property
+    def n_in(self) -> int:
+        """Number of inequality rows."""
+        return 0 if self.C is None else self.C.shape[0]
+
+    def scaled(self, factor: float) -> Rows:
+        """Rows multiplied by ``factor`` (a task's weight enters as its square root)."""
+        if factor == 1.0:
+            return self
+        return Rows(
+            None if self.A is None else factor * self.A,
+            None if self.b is None else factor * self.b,
+            None if self.C is None else factor * self.C,
+            None if self.lower is None else factor * self.lower,
+            None if self.upper is None else factor * self.upper,
+        )
+
+    @staticmethod
+    def stack(parts: list[Rows], n: int) -> Rows:
+        """Stack the rows of several tasks (same ``n``) into one ``Rows``."""
+        eq = [p for p in parts if p.n_eq]
+        ineq = [p for p in parts if p.n_in]
+        A = np.vstack([p.A for p in eq]) if eq else None  # type: ignore[misc]
+        b = np.concatenate([p.b for p in eq]) if eq else None  # type: ignore[misc]
+        if ineq:
+            C = np.vstack([p.C for p in ineq])  # type: ignore[misc]
+            lower = np.concatenate(
+                [p.lower if p.lower is not None else np.full(p.n_in, -np.inf) for p in ineq]
+            )
+            upper = np.concatenate(
+                [p.upper if p.upper is not None else np.full(p.n_in, np.inf) for p in ineq]
+            )
+        else:
+            C = lower = upper = None
+        if A is not None and A.shape[1] != n or C is not None and C.shape[1] != n:
+            raise InvalidInput(f"Rows.stack: rows do not have {n} columns")
+        return Rows(A, b, C, lower, upper)
+
+
+class Task(abc.ABC):
+    """A control primitive: robot state -> rows over ``x = [qdd | wrenches]``.
+
+    Args:
+        name: Name of the task, unique in a stack (used in reports and errors).
+        weight: Weight within its level (its rows are scaled by ``sqrt(weight)``).
+
+    Raises:
+        InvalidGain: Negative or non-finite weight.
+    """
+
+    category: Category = Category.OPERATIONAL
+    """Default category (level) of the primitive."""
+
+    def __init__(self, name: str, weight: float = 1.0) -> None:
+        from hqp.errors import InvalidGain
+
+        if not np.isfinite(weight) or weight <= 0.0:
+            raise InvalidGain(f"{type(self).__name__} {name!r}: weight must be positive, got {weight}")
+        self.name = name
+        self.weight = float(weight)
+
+    @abc.abstractmethod
+    def rows(self, state: RobotModel, layout: Layout, dt: float, t: float) -> Rows:
+        """Rows of the task at the updated state.
+
+        Args:
+            state: Robot model after :meth:`RobotModel.update` for this step.
+            layout: Decision-variable layout.
+            dt: Control period [s].
+            t: Time [s].
+        """
+
+    def error(self) -> np.ndarray:
+        """Task-space error ``goal - current`` at the last call of :meth:`rows` (empty if none)."""
+        return np.zeros(0)
+
+    def where(self) -> str:
+        """Prefix for error messages: the primitive's type and name."""
+        return f"{type(self).__name__} {self.name!r}"
