@@ -1,0 +1,183 @@
+"""Metrics of a scenario run, computed from its recorded trace.
+
+The definitions are those of the command-line contract (ARCHITECTURE.md,
+"Contract: the command line"):
+
+- ``cog_error_max_mm``: the largest horizontal distance of the centre of
+  gravity from its goal over the run [mm];
+- ``cog_error_final_mm``: the mean of that distance over the last 0.5 s [mm];
+- ``hand_final_distance_cm``: the distance of the right hand to its target at
+  the end of the run [cm];
+- ``joint_limit_violation_max_rad``: the largest excursion of an actuated
+  joint past a position limit of the controller's model over the run
+  (0 when none) [rad];
+- ``step_time_median_ms``: the median wall-clock time of a control step [ms];
+- ``fell``: the pelvis went below 0.6 x its standing height, or anything but
+  a foot touched the floor.
+
+Per-axis centre-of-gravity errors (``cog_error_x_*``, ``cog_error_y_*``) and
+the number of clipped torque entries (``torque_clipping_count``) are added.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from hqp.errors import InvalidInput, check_array
+
+FINAL_WINDOW_S = 0.5
+"""Length of the final window over which ``*_final_*`` errors are averaged [s]."""
+
+FALL_HEIGHT_RATIO = 0.6
+"""The robot fell when its pelvis goes below this fraction of its standing height."""
+
+
+@dataclass
+class Trace:
+    """What a scenario records at every logged control step of one run.
+
+    All quantities are computed with the controller's model from the
+    simulated state (pinocchio convention), except ``floor_contacts``, read
+    from MuJoCo (which bodies touch the floor).
+
+    Attributes:
+        t: Times ``(N,)`` [s].
+        q: Actuated joint positions ``(N, na)`` [rad].
+        q_lower: Lower position limits of the controller's model ``(na,)`` [rad].
+        q_upper: Upper position limits of the controller's model ``(na,)`` [rad].
+        joint_names: Names of the actuated joints ``(na,)``.
+        com: Centre of gravity ``(N, 3)`` [m].
+        com_goal: Horizontal goal of the centre of gravity ``(N, 2)`` [m].
+        pelvis_z: Height of the floating base ``(N,)`` [m].
+        standing_height: Height of the floating base when standing [m].
+        hand: Position of the tracked hand ``(N, 3)`` [m] (``None``: no hand task).
+        hand_goal: Its target ``(N, 3)`` [m] (``None``: no hand task).
+        non_foot_floor_contact: Whether a body other than a foot touched the
+            floor at each step ``(N,)``.
+        torque_clipped: Number of torque entries clipped by the simulator at
+            each step ``(N,)``.
+        step_ms: Wall-clock time of each control step ``(N,)`` [ms].
+        extra: Further named series ``(N, ...)`` for plots (e.g. obstacle distance).
+
+    """
+
+    t: np.ndarray
+    q: np.ndarray
+    q_lower: np.ndarray
+    q_upper: np.ndarray
+    joint_names: tuple[str, ...]
+    com: np.ndarray
+    com_goal: np.ndarray
+    pelvis_z: np.ndarray
+    standing_height: float
+    hand: np.ndarray | None = None
+    hand_goal: np.ndarray | None = None
+    non_foot_floor_contact: np.ndarray | None = None
+    torque_clipped: np.ndarray | None = None
+    step_ms: np.ndarray | None = None
+    extra: dict[str, np.ndarray] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        """Convert and check shapes (raises :class:`InvalidInput`)."""
+        self.t = check_array(self.t, (None,), "Trace: t")
+        n = self.t.shape[0]
+        if n == 0:
+            raise InvalidInput("Trace: no samples")
+        na = len(self.joint_names)
+        self.q = check_array(self.q, (n, na), "Trace: q")
+        self.q_lower = check_array(self.q_lower, (na,), "Trace: q_lower", allow_inf=True)
+        self.q_upper = check_array(self.q_upper, (na,), "Trace: q_upper", allow_inf=True)
+        self.com = check_array(self.com, (n, 3), "Trace: com")
+        self.com_goal = check_array(self.com_goal, (n, 2), "Trace: com_goal")
+        self.pelvis_z = check_array(self.pelvis_z, (n,), "Trace: pelvis_z")
+        if self.hand is not None:
+            self.hand = check_array(self.hand, (n, 3), "Trace: hand")
+            self.hand_goal = check_array(self.hand_goal, (n, 3), "Trace: hand_goal")
+        if self.non_foot_floor_contact is not None:
+            self.non_foot_floor_contact = np.asarray(self.non_foot_floor_contact, dtype=bool)
+            if self.non_foot_floor_contact.shape != (n,):
+                raise InvalidInput("Trace: non_foot_floor_contact must have shape (N,)")
+        if self.torque_clipped is not None:
+            self.torque_clipped = check_array(self.torque_clipped, (n,), "Trace: torque_clipped")
+        if self.step_ms is not None:
+            self.step_ms = check_array(self.step_ms, (None,), "Trace: step_ms")
+
+    @property
+    def cog_error(self) -> np.ndarray:
+        """Horizontal centre-of-gravity error ``com_xy - goal`` ``(N, 2)`` [m]."""
+        return self.com[:, :2] - self.com_goal
+
+    def joint(self, name: str) -> np.ndarray:
+        """Position of one actuated joint over the run ``(N,)`` [rad].
+
+        Raises:
+            InvalidInput: Unknown joint (the message lists the joints).
+
+        """
+        if name not in self.joint_names:
+            joints = ", ".join(self.joint_names)
+            raise InvalidInput(f"Trace: unknown joint {name!r}; joints: {joints}")
+        return self.q[:, self.joint_names.index(name)]
+
+
+def final_window(t: np.ndarray, window: float = FINAL_WINDOW_S) -> np.ndarray:
+    """Boolean mask of the samples in the last ``window`` seconds (at least one sample)."""
+    mask = t >= t[-1] - window
+    mask[-1] = True
+    return mask
+
+
+def joint_limit_violation(q: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> float:
+    """Largest excursion past a position limit ``max(lower - q, q - upper, 0)`` [rad].
+
+    Args:
+        q: Joint positions ``(N, na)`` [rad].
+        lower: Lower limits ``(na,)`` (``-inf`` allowed) [rad].
+        upper: Upper limits ``(na,)`` (``+inf`` allowed) [rad].
+
+    """
+    below = np.where(np.isfinite(lower), lower - q, -np.inf)
+    above = np.where(np.isfinite(upper), q - upper, -np.inf)
+    return float(max(0.0, np.max(below), np.max(above)))
+
+
+def fell(trace: Trace) -> bool:
+    """Tell whether the pelvis fell below 0.6 x standing height or a non-foot body hit the floor."""
+    low = bool(np.any(trace.pelvis_z < FALL_HEIGHT_RATIO * trace.standing_height))
+    touched = bool(trace.non_foot_floor_contact is not None and trace.non_foot_floor_contact.any())
+    return low or touched
+
+
+def run_metrics(trace: Trace) -> dict[str, float | int | bool | None]:
+    """Return the metrics of one run (module docstring), as JSON-ready Python scalars."""
+    err = trace.cog_error
+    dist = np.linalg.norm(err, axis=1)
+    last = final_window(trace.t)
+    out: dict[str, float | int | bool | None] = {
+        "cog_error_max_mm": 1e3 * float(dist.max()),
+        "cog_error_final_mm": 1e3 * float(dist[last].mean()),
+        "cog_error_x_max_mm": 1e3 * float(np.abs(err[:, 0]).max()),
+        "cog_error_y_max_mm": 1e3 * float(np.abs(err[:, 1]).max()),
+        "cog_error_x_final_mm": 1e3 * float(err[last, 0].mean()),
+        "cog_error_y_final_mm": 1e3 * float(err[last, 1].mean()),
+        "hand_final_distance_cm": None,
+        "joint_limit_violation_max_rad": joint_limit_violation(
+            trace.q, trace.q_lower, trace.q_upper
+        ),
+        "step_time_median_ms": (
+            float(np.median(trace.step_ms))
+            if trace.step_ms is not None and trace.step_ms.size
+            else None
+        ),
+        "torque_clipping_count": (
+            int(trace.torque_clipped.sum()) if trace.torque_clipped is not None else 0
+        ),
+        "fell": fell(trace),
+    }
+    if trace.hand is not None and trace.hand_goal is not None:
+        out["hand_final_distance_cm"] = 1e2 * float(
+            np.linalg.norm(trace.hand[-1] - trace.hand_goal[-1])
+        )
+    return out
