@@ -1,0 +1,100 @@
+"""Tests of the paper scenarios (``comparisons/``), their metrics, plots and ``hqp compare``."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from comparisons.metrics import Trace, joint_limit_violation, run_metrics
+from hqp.errors import HQPError, InvalidInput
+
+
+def _trace(n: int = 101, dt: float = 0.01, **kw: object) -> Trace:
+    t = np.arange(n) * dt
+    names = ("a", "b")
+    base = dict(
+        t=t,
+        q=np.zeros((n, 2)),
+        q_lower=np.array([-1.0, -np.inf]),
+        q_upper=np.array([1.0, 2.0]),
+        joint_names=names,
+        com=np.zeros((n, 3)),
+        com_goal=np.zeros((n, 2)),
+        pelvis_z=np.full(n, 0.9),
+        standing_height=0.9,
+    )
+    base.update(kw)
+    return Trace(**base)  # type: ignore[arg-type]
+
+
+def test_cog_errors_follow_the_contract_definitions() -> None:
+    n, dt = 201, 0.01  # 2 s
+    t = np.arange(n) * dt
+    com = np.zeros((n, 3))
+    # x error ramps to 3 mm, y error a constant -4 mm after 1 s: distance 5 mm at the end.
+    com[:, 0] = np.minimum(t, 1.0) * 3e-3
+    com[t >= 1.0, 1] = -4e-3
+    com[50, 0] = 0.02  # a 20 mm spike at t = 0.5 s
+    m = run_metrics(_trace(n, dt, com=com, com_goal=np.zeros((n, 2))))
+    np.testing.assert_allclose(m["cog_error_max_mm"], 20.0, atol=1e-9)
+    np.testing.assert_allclose(m["cog_error_final_mm"], 5.0, atol=1e-9)
+    np.testing.assert_allclose(m["cog_error_x_final_mm"], 3.0, atol=1e-9)
+    np.testing.assert_allclose(m["cog_error_y_final_mm"], -4.0, atol=1e-9)
+    np.testing.assert_allclose(m["cog_error_y_max_mm"], 4.0, atol=1e-9)
+
+
+def test_final_cog_error_is_a_mean_over_the_last_half_second() -> None:
+    n, dt = 301, 0.01  # 3 s
+    t = np.arange(n) * dt
+    com = np.zeros((n, 3))
+    com[:, 0] = t * 1e-3  # 1 mm/s drift
+    m = run_metrics(_trace(n, dt, com=com))
+    # mean of t over [2.5, 3.0] = 2.75 s -> 2.75 mm
+    np.testing.assert_allclose(m["cog_error_final_mm"], 2.75, atol=1e-9)
+
+
+def test_hand_distance_and_joint_limit_violation() -> None:
+    n = 11
+    hand = np.zeros((n, 3))
+    hand[-1] = [0.0, 0.3, 0.4]
+    q = np.zeros((n, 2))
+    q[3, 0] = 1.0004  # past the upper limit by 4e-4
+    q[5, 1] = -50.0  # no lower limit on joint b
+    q[7, 0] = -1.0  # exactly at the lower limit: no violation
+    m = run_metrics(_trace(n, hand=hand, hand_goal=np.zeros((n, 3)), q=q))
+    np.testing.assert_allclose(m["hand_final_distance_cm"], 50.0, atol=1e-9)
+    np.testing.assert_allclose(m["joint_limit_violation_max_rad"], 4e-4, atol=1e-12)
+    assert joint_limit_violation(np.zeros((2, 2)), -np.ones(2), np.ones(2)) == 0.0
+
+
+def test_fall_detection() -> None:
+    n = 11
+    z = np.full(n, 0.9)
+    assert run_metrics(_trace(n, pelvis_z=z))["fell"] is False
+    z[6] = 0.53  # below 0.6 x 0.9 = 0.54
+    assert run_metrics(_trace(n, pelvis_z=z))["fell"] is True
+    touch = np.zeros(n, dtype=bool)
+    touch[4] = True
+    assert run_metrics(_trace(n, non_foot_floor_contact=touch))["fell"] is True
+
+
+def test_trace_rejects_bad_shapes() -> None:
+    with pytest.raises(InvalidInput, match="com"):
+        _trace(11, com=np.zeros((10, 3)))
+    with pytest.raises(HQPError, match="unknown joint 'c'; joints: a, b"):
+        _trace(11).joint("c")
+
+
+def test_plot_panels_writes_a_png(tmp_path) -> None:
+    from hqp.plots import Line, Panel, plot_panels
+
+    t = np.linspace(0.0, 1.0, 50)
+    panels = [
+        Panel("Balancing Error", "error [cm]", t, (Line("X", t), Line("Y", -t))),
+        Panel("Right Elbow Angle", "angle [rad]", t, (Line("limit", 0 * t, "dashed"),)),
+        Panel("Right Knee Flexion", "angle [rad]", t, (Line("angle", t**2),)),
+    ]
+    out = plot_panels(panels, tmp_path / "sub" / "fig.png", "title")
+    assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    with pytest.raises(InvalidInput, match="curve 'bad'"):
+        plot_panels([Panel("p", "y", t, (Line("bad", t[:-1]),))], tmp_path / "x.png")
