@@ -1,0 +1,635 @@
+"""Priority levels: an ordered stack of tasks, built into solver levels apart from the solve.
+
+A :class:`Stack` holds any number of levels (default: one per :class:`~hqp.tasks.base.Category`,
+in the order of ARCHITECTURE.md "Levels of a control step": physics, contact and actuation limits,
+joint limits, collision, balance, operational, posture). Tasks that share a level are stacked
+into one :class:`hqp.solver.Level`, each task's rows scaled by ``sqrt(weight)``; a strict
+hierarchy ignores any scaling between levels, so weights only trade tasks of the same level.
+
+:meth:`Stack.build` turns the tasks into levels at the current state without solving them (the
+``build_ik`` of mink), and records the row ranges of every task (:class:`TaskSpan`) so that a
+controller can attribute residuals to tasks.
+
+Changes at runtime, without a jump in the motion:
+
+* **Adding a task** ramps it in from zero effect. For a ramp fraction ``s`` rising from 0 to 1
+  along a minimum-jerk profile over ``ramp_time``, the task's equality target becomes
+  ``b_s = s b + (1 - s) A x_prev`` (``x_prev``: the previous solution) and its inequality
+  bounds are widened to contain ``C x_prev`` and narrowed back: at ``s = 0`` the previous
+  solution satisfies the new task exactly, so it is still the lexicographic optimum (levels
+  above are unchanged; at the task's level the added cost is zero at ``x_prev``; levels below
+  are optimised over a subset that still contains it), and the torques start continuous.
+  The task's own PD reference is the goal it ramps to (tasks with a goal trajectory, e.g. the
+  minimum-jerk interpolator of :mod:`hqp.tasks.reference`, can also start at the current value).
+* **Releasing a contact** first unloads it: a row ``n^T f <= f_max(t)`` (``n`` the contact
+  normal, world axes) at the contact-limits level, with ``f_max`` falling from the normal force
+  at the start of unloading to zero along a minimum-jerk profile over ``unload_time``; then the
+  contact's tasks are dropped and its slot is held at zero by a physics row.
+* **Changes that cannot be ramped** (removing a task, making a contact, releasing an unloaded
+  contact) are recorded as *blend events*; the controller then interpolates its torques from the
+  last command to the new hierarchy's over ``blend_time`` and reports that strictness was
+  suspended (see :class:`hqp.controller.WholeBodyController`).
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from hqp.errors import InvalidInput, InvalidLevel, UnknownName
+from hqp.layout import ContactType
+from hqp.tasks.base import Category, Rows, Task
+
+if TYPE_CHECKING:
+    from hqp.layout import Layout
+    from hqp.model import RobotModel
+    from hqp.solver import Level
+
+DEFAULT_LEVELS: tuple[Category, ...] = tuple(Category)
+"""Default levels: one per category, highest first."""
+
+
+def min_jerk(s: float) -> float:
+    """Minimum-jerk profile ``10 s^3 - 15 s^4 + 6 s^5`` of a fraction ``s`` clipped to [0, 1]."""
+    s = min(max(s, 0.0), 1.0)
+    return s * s * s * (10.0 + s * (-15.0 + 6.0 * s))
+
+
+class ContactMode(enum.Enum):
+    """State of a declared contact."""
+
+    ACTIVE = "active"
+    """Loaded: the contact's tasks are in the stack."""
+    UNLOADING = "unloading"
+    """Active, with its normal-force bound ramping to zero."""
+    INACTIVE = "inactive"
+    """Released: its tasks are out of the stack and its slot is held at zero."""
+
+
+@dataclass
+class _TaskEntry:
+    task: Task
+    level: int
+    added_at: float
+    ramp_time: float
+    contact: str | None = None
+
+
+@dataclass
+class _ContactEntry:
+    name: str
+    frame: str
+    kind: ContactType
+    mode: ContactMode
+    unload_start: float = 0.0
+    unload_time: float = 0.0
+    f_start: float | None = None
+    f_max_nominal: float | None = None
+
+
+@dataclass(frozen=True)
+class TaskSpan:
+    """Where a task's rows sit in the built levels.
+
+    Attributes:
+        name: Task name.
+        level: Index of the task's level in the stack (0: highest priority).
+        built_level: Index of that level in :attr:`BuiltStack.levels` (empty levels are
+            skipped).
+        eq: Slice of the level's equality rows that belong to the task.
+        ineq: Slice of the level's inequality rows that belong to the task.
+        weight: The task's weight (its rows are scaled by ``sqrt(weight)`` in the level).
+        ramp: Ramp fraction in [0, 1] (1: the task's own rows, no ramp).
+        internal: A row added by the stack (contact unloading or release), not a user task.
+
+    """
+
+    name: str
+    level: int
+    built_level: int
+    eq: slice
+    ineq: slice
+    weight: float = 1.0
+    ramp: float = 1.0
+    internal: bool = False
+
+
+@dataclass(frozen=True)
+class BuiltStack:
+    """The levels of one control step and the row ranges of every task.
+
+    Attributes:
+        levels: Non-empty solver levels, highest priority first.
+        level_index: Stack level index of each built level.
+        spans: Row ranges of every task, in level order.
+        rows: Unweighted rows of every task by name (as fed to the level, ramps applied).
+        n: Number of decision variables.
+
+    """
+
+    levels: list[Level]
+    level_index: tuple[int, ...]
+    spans: tuple[TaskSpan, ...]
+    rows: dict[str, Rows] = field(default_factory=dict)
+    n: int = 0
+
+    def span(self, name: str) -> TaskSpan:
+        """Return the span of a task by name.
+
+        Raises:
+            UnknownName: No task of that name.
+
+        """
+        for s in self.spans:
+            if s.name == name:
+                return s
+        raise UnknownName("task", name, [s.name for s in self.spans])
+
+
+@dataclass(frozen=True)
+class BlendEvent:
+    """A change of the stack that cannot be ramped (the controller blends torques).
+
+    Attributes:
+        t: Time of the change [s].
+        note: What changed.
+
+    """
+
+    t: float
+    note: str
+
+
+class Stack:
+    """An ordered list of levels of tasks, with contacts declared for the whole stack.
+
+    Args:
+        levels: Level names or categories, highest priority first (default: one level per
+            :class:`Category`). A task added without a level goes to the level of its
+            category.
+        ramp_time: Default ramp of an added task [s].
+        unload_time: Default duration of the unloading of a released contact [s].
+        blend_time: Duration of the torque interpolation after a change that cannot be
+            ramped [s] (used by the controller).
+
+    Raises:
+        InvalidInput: No level, duplicate level names, or negative times.
+
+    """
+
+    def __init__(
+        self,
+        levels: Sequence[str | Category] | None = None,
+        *,
+        ramp_time: float = 0.3,
+        unload_time: float = 0.3,
+        blend_time: float = 0.05,
+    ) -> None:
+        specs = list(DEFAULT_LEVELS if levels is None else levels)
+        if not specs:
+            raise InvalidInput("Stack: at least one level is needed")
+        names = [s.name.lower() if isinstance(s, Category) else str(s) for s in specs]
+        if len(set(names)) != len(names):
+            raise InvalidInput(f"Stack: duplicate level names {names}")
+        for label, value in (("ramp_time", ramp_time), ("unload_time", unload_time),
+                             ("blend_time", blend_time)):
+            if not math.isfinite(value) or value < 0.0:
+                raise InvalidInput(f"Stack: {label} must be finite and >= 0, got {value}")
+        self.level_names: tuple[str, ...] = tuple(names)
+        self.level_categories: tuple[Category | None, ...] = tuple(
+            s if isinstance(s, Category) else None for s in specs
+        )
+        self.ramp_time = float(ramp_time)
+        self.unload_time = float(unload_time)
+        self.blend_time = float(blend_time)
+        self._tasks: list[_TaskEntry] = []
+        self._contacts: dict[str, _ContactEntry] = {}
+        self._events: list[BlendEvent] = []
+
+    # -- levels -----------------------------------------------------------------------------
+
+    @property
+    def n_levels(self) -> int:
+        """Number of levels."""
+        return len(self.level_names)
+
+    def level_of(self, level: int | str | Category | None, task: Task | None = None) -> int:
+        """Resolve a level given as an index, a name, a category, or ``None`` (task's category).
+
+        Raises:
+            InvalidLevel: Index out of range, unknown name, or a category without a level.
+
+        """
+        if level is None:
+            if task is None:
+                raise InvalidLevel("Stack: a level or a task is needed")
+            level = task.category
+        if isinstance(level, Category):
+            if level in self.level_categories:
+                return self.level_categories.index(level)
+            raise InvalidLevel(
+                f"Stack: no level of category {level.name}; levels: {', '.join(self.level_names)}"
+            )
+        if isinstance(level, str):
+            if level in self.level_names:
+                return self.level_names.index(level)
+            raise InvalidLevel(
+                f"Stack: unknown level {level!r}; levels: {', '.join(self.level_names)}"
+            )
+        index = int(level)
+        if not 0 <= index < self.n_levels:
+            raise InvalidLevel(f"Stack: level {index} out of range 0..{self.n_levels - 1}")
+        return index
+
+    # -- tasks ------------------------------------------------------------------------------
+
+    @property
+    def tasks(self) -> tuple[Task, ...]:
+        """Every task of the stack (contact tasks included), in level order."""
+        return tuple(e.task for e in sorted(self._tasks, key=lambda e: e.level))
+
+    def task(self, name: str) -> Task:
+        """Return a task by name.
+
+        Raises:
+            UnknownName: No task of that name (lists the tasks).
+
+        """
+        return self._entry(name).task
+
+    def level_of_task(self, name: str) -> int:
+        """Return the level index of a task."""
+        return self._entry(name).level
+
+    def _entry(self, name: str) -> _TaskEntry:
+        for e in self._tasks:
+            if e.task.name == name:
+                return e
+        raise UnknownName("task", name, [e.task.name for e in self._tasks])
+
+    def __contains__(self, name: object) -> bool:
+        return any(e.task.name == name for e in self._tasks)
+
+    def add(
+        self,
+        task: Task,
+        level: int | str | Category | None = None,
+        *,
+        t: float | None = None,
+        ramp_time: float | None = None,
+        contact: str | None = None,
+    ) -> None:
+        """Add a task at a level.
+
+        Args:
+            task: The task; its name must be unique in the stack.
+            level: Level index, name or category (``None``: the task's category).
+            t: Time of the addition [s]. ``None`` adds the task without a ramp (building a
+                stack before the first step).
+            ramp_time: Ramp duration [s] (default: the stack's ``ramp_time``); 0: no ramp.
+            contact: Name of a declared contact the task belongs to (it is dropped when the
+                contact is released and restored when it is made again).
+
+        Raises:
+            InvalidInput: Not a task, a duplicate name, a negative ramp or an unknown contact.
+            InvalidLevel: Unknown level.
+
+        """
+        if not isinstance(task, Task):
+            raise InvalidInput(f"Stack.add: expected a Task, got {type(task).__name__}")
+        if task.name in self:
+            raise InvalidInput(f"Stack.add: a task named {task.name!r} is already in the stack")
+        if contact is not None and contact not in self._contacts:
+            raise UnknownName("contact", contact, self._contacts)
+        ramp = self.ramp_time if ramp_time is None else float(ramp_time)
+        if not math.isfinite(ramp) or ramp < 0.0:
+            raise InvalidInput(f"Stack.add: ramp_time must be finite and >= 0, got {ramp}")
+        index = self.level_of(level, task)
+        self._tasks.append(
+            _TaskEntry(task, index, -math.inf if t is None else float(t),
+                       0.0 if t is None else ramp, contact)
+        )
+
+    def remove(self, name: str, *, t: float = 0.0) -> Task:
+        """Remove a task (a blend event: the controller interpolates its torques).
+
+        Returns:
+            The removed task.
+
+        Raises:
+            UnknownName: No task of that name.
+
+        """
+        entry = self._entry(name)
+        self._tasks.remove(entry)
+        self._events.append(BlendEvent(float(t), f"task {name!r} removed"))
+        return entry.task
+
+    def move(self, name: str, level: int | str | Category, *, t: float = 0.0) -> None:
+        """Move a task to another level (a blend event)."""
+        entry = self._entry(name)
+        entry.level = self.level_of(level, entry.task)
+        self._events.append(BlendEvent(float(t), f"task {name!r} moved to level {entry.level}"))
+
+    # -- contacts ---------------------------------------------------------------------------
+
+    def declare_contact(
+        self,
+        name: str,
+        frame: str,
+        kind: ContactType = ContactType.SURFACE,
+        tasks: Sequence[tuple[Task, int | str | Category | None]] = (),
+        *,
+        active: bool = True,
+    ) -> None:
+        """Declare a contact (its slot exists in the layout whether it is active or not).
+
+        Args:
+            name: Contact name (as in the layout).
+            frame: Contact frame.
+            kind: Surface (6D wrench) or point (3D force).
+            tasks: The contact's tasks with their levels (e.g. its motion constraint at the
+                physics level and its friction/CoP limits at the contact-limits level).
+            active: Whether the contact starts made.
+
+        Raises:
+            InvalidInput: A contact of that name already declared.
+
+        """
+        if name in self._contacts:
+            raise InvalidInput(f"Stack: contact {name!r} already declared")
+        self._contacts[name] = _ContactEntry(
+            name, frame, ContactType(kind), ContactMode.ACTIVE if active else ContactMode.INACTIVE
+        )
+        for task, level in tasks:
+            self.add(task, level, contact=name)
+            if not active and hasattr(task, "deactivate"):
+                task.deactivate()
+
+    def add_contact(self, contact: Task, *, limits: bool = True, active: bool = True) -> None:
+        """Declare a :class:`hqp.tasks.contact.Contact` with its rows at the default levels.
+
+        The contact's physics rows go to the PHYSICS level and, with ``limits``, its
+        :class:`~hqp.tasks.contact.ContactLimits` rows to the CONTACT_LIMITS level.
+
+        Args:
+            contact: A ``Contact`` task (it has ``frame``, ``kind``, ``activate()``,
+                ``deactivate()``, ``max_normal_force``).
+            limits: Also add its limit rows.
+            active: Whether the contact starts made.
+
+        """
+        from hqp.tasks.contact import ContactLimits
+
+        tasks: list[tuple[Task, int | str | Category | None]] = [(contact, Category.PHYSICS)]
+        if limits:
+            tasks.append((ContactLimits(contact), Category.CONTACT_LIMITS))
+        self.declare_contact(contact.name, contact.frame, contact.kind,  # type: ignore[attr-defined]
+                             tasks, active=active)
+
+    @property
+    def contacts(self) -> tuple[str, ...]:
+        """Names of the declared contacts."""
+        return tuple(self._contacts)
+
+    def layout_contacts(self) -> list[tuple[str, str, ContactType]]:
+        """Return the ``(name, frame, kind)`` of the declared contacts (for ``Layout.build``)."""
+        return [(c.name, c.frame, c.kind) for c in self._contacts.values()]
+
+    def contact_mode(self, name: str) -> ContactMode:
+        """Return the mode of a declared contact."""
+        return self._contact(name).mode
+
+    @property
+    def active_contacts(self) -> tuple[str, ...]:
+        """Contacts that are loaded or unloading."""
+        return tuple(c.name for c in self._contacts.values() if c.mode is not ContactMode.INACTIVE)
+
+    def _contact(self, name: str) -> _ContactEntry:
+        try:
+            return self._contacts[name]
+        except KeyError:
+            raise UnknownName("contact", name, self._contacts) from None
+
+    def activate_contact(self, name: str, *, t: float = 0.0) -> None:
+        """Make a contact (a blend event: a rigid contact appears at once)."""
+        c = self._contact(name)
+        if c.mode is ContactMode.ACTIVE:
+            return
+        c.mode = ContactMode.ACTIVE
+        c.f_start = None
+        for entry in self._contact_tasks(name):
+            if hasattr(entry.task, "activate"):
+                entry.task.activate()
+        self._restore_f_max(c)
+        self._events.append(BlendEvent(float(t), f"contact {name!r} made"))
+
+    def deactivate_contact(
+        self, name: str, *, t: float = 0.0, unload_time: float | None = None
+    ) -> None:
+        """Start unloading a contact; it is released when its normal-force bound reaches zero.
+
+        Args:
+            name: Contact name.
+            t: Start of the unloading [s].
+            unload_time: Duration [s] (default: the stack's ``unload_time``); 0 releases at once
+                (a blend event).
+
+        """
+        c = self._contact(name)
+        if c.mode is not ContactMode.ACTIVE:
+            return
+        duration = self.unload_time if unload_time is None else float(unload_time)
+        if not math.isfinite(duration) or duration < 0.0:
+            raise InvalidInput(f"Stack: unload_time must be finite and >= 0, got {duration}")
+        c.mode = ContactMode.UNLOADING
+        c.unload_start = float(t)
+        c.unload_time = duration
+        c.f_start = None
+
+    def _contact_tasks(self, name: str) -> list[_TaskEntry]:
+        return [e for e in self._tasks if e.contact == name]
+
+    def _owner(self, c: _ContactEntry) -> Task | None:
+        """Return the contact task carrying ``max_normal_force`` (e.g. a ``Contact``), if any."""
+        for entry in self._contact_tasks(c.name):
+            if hasattr(entry.task, "max_normal_force") and hasattr(entry.task, "deactivate"):
+                return entry.task
+        return None
+
+    def _restore_f_max(self, c: _ContactEntry) -> None:
+        owner = self._owner(c)
+        if owner is not None and c.f_max_nominal is not None:
+            owner.max_normal_force = c.f_max_nominal  # type: ignore[attr-defined]
+        c.f_max_nominal = None
+
+    def pop_events(self) -> list[BlendEvent]:
+        """Return and forget the blend events recorded since the last call."""
+        events, self._events = self._events, []
+        return events
+
+    # -- build ------------------------------------------------------------------------------
+
+    def _update_contacts(self, t: float) -> None:
+        for c in self._contacts.values():
+            if c.mode is ContactMode.UNLOADING and t >= c.unload_start + c.unload_time:
+                c.mode = ContactMode.INACTIVE
+                self._restore_f_max(c)
+                for entry in self._contact_tasks(c.name):
+                    if hasattr(entry.task, "deactivate"):
+                        entry.task.deactivate()
+                self._events.append(BlendEvent(t, f"contact {c.name!r} released"))
+
+    def build(
+        self,
+        model: RobotModel,
+        layout: Layout,
+        dt: float,
+        t: float,
+        x_prev: np.ndarray | None = None,
+    ) -> BuiltStack:
+        """Build the solver levels of one control step (no solve).
+
+        Args:
+            model: Robot model, updated at the current state.
+            layout: Decision-variable layout (its contacts must be the declared ones).
+            dt: Control period [s].
+            t: Time [s].
+            x_prev: Previous solution ``(n,)`` (for ramps; ``None``: ramps start from zero).
+
+        Returns:
+            The levels and the row ranges of every task.
+
+        Raises:
+            InvalidInput: A layout contact not declared in the stack, or a task's rows with the
+                wrong number of columns.
+
+        """
+        from hqp.solver import Level
+
+        n = layout.n
+        for slot in layout.contacts:
+            if slot.name not in self._contacts:
+                raise InvalidInput(
+                    f"Stack.build: layout contact {slot.name!r} is not declared in the stack"
+                )
+        self._update_contacts(t)
+        per_level: list[list[tuple[str, Rows, float, float, bool]]] = [
+            [] for _ in range(self.n_levels)
+        ]
+        self._contact_rows(model, layout, t, x_prev, per_level)
+        for entry in self._tasks:
+            if entry.contact is not None and (
+                self._contacts[entry.contact].mode is ContactMode.INACTIVE
+                and not self._self_managed(entry.contact)
+            ):
+                continue
+            rows = entry.task.rows(model, layout, dt, t)
+            _check_columns(rows, n, entry.task.where())
+            s = 1.0
+            if entry.ramp_time > 0.0 and t < entry.added_at + entry.ramp_time:
+                s = min_jerk((t - entry.added_at) / entry.ramp_time)
+                rows = _ramp(rows, s, x_prev)
+            per_level[entry.level].append((entry.task.name, rows, entry.task.weight, s, False))
+
+        levels: list[Level] = []
+        level_index: list[int] = []
+        spans: list[TaskSpan] = []
+        all_rows: dict[str, Rows] = {}
+        for index, items in enumerate(per_level):
+            items = [it for it in items if it[1].n_eq or it[1].n_in]
+            if not items:
+                continue
+            built = len(levels)
+            eq0 = in0 = 0
+            scaled = []
+            for name, rows, weight, s, internal in items:
+                spans.append(TaskSpan(name, index, built, slice(eq0, eq0 + rows.n_eq),
+                                      slice(in0, in0 + rows.n_in), weight, s, internal))
+                eq0 += rows.n_eq
+                in0 += rows.n_in
+                all_rows[name] = rows
+                scaled.append(rows.scaled(math.sqrt(weight)))
+            stacked = scaled[0] if len(scaled) == 1 else Rows.stack(scaled, n)
+            levels.append(Level(A=stacked.A, b=stacked.b, C=stacked.C, lower=stacked.lower,
+                                upper=stacked.upper, name=self.level_names[index]))
+            level_index.append(index)
+        return BuiltStack(levels, tuple(level_index), tuple(spans), all_rows, n)
+
+    def _self_managed(self, name: str) -> bool:
+        """Whether a contact's tasks hold its slot at zero themselves when inactive."""
+        return self._owner(self._contacts[name]) is not None
+
+    def _contact_rows(
+        self,
+        model: RobotModel,
+        layout: Layout,
+        t: float,
+        x_prev: np.ndarray | None,
+        per_level: list[list[tuple[str, Rows, float, float, bool]]],
+    ) -> None:
+        """Stack-owned rows: zero slots of released contacts, unloading bounds."""
+        n = layout.n
+        limits = (
+            self.level_categories.index(Category.CONTACT_LIMITS)
+            if Category.CONTACT_LIMITS in self.level_categories
+            else min(1, self.n_levels - 1)
+        )
+        for slot in layout.contacts:
+            c = self._contacts[slot.name]
+            owner = self._owner(c)
+            if c.mode is ContactMode.INACTIVE and owner is None:
+                A = np.zeros((slot.size, n))
+                A[:, slot.slice] = np.eye(slot.size)
+                per_level[0].append((f"{c.name}/released", Rows(A=A, b=np.zeros(slot.size)),
+                                     1.0, 1.0, True))
+            elif c.mode is ContactMode.UNLOADING:
+                normal = np.array(model.frame_placement(slot.frame).rotation[:, 2])
+                C = np.zeros((1, n))
+                C[0, slot.start:slot.start + 3] = normal
+                if c.f_start is None:
+                    fz = float(C[0] @ x_prev) if x_prev is not None else 0.0
+                    c.f_start = max(fz, 0.0)
+                s = min_jerk((t - c.unload_start) / c.unload_time) if c.unload_time > 0 else 1.0
+                fmax = (1.0 - s) * c.f_start
+                if owner is not None:
+                    if c.f_max_nominal is None:
+                        c.f_max_nominal = float(owner.max_normal_force)  # type: ignore[attr-defined]
+                    f_min = float(getattr(owner, "f_min", 0.0))
+                    owner.max_normal_force = max(  # type: ignore[attr-defined]
+                        min(fmax, c.f_max_nominal), f_min
+                    )
+                    continue
+                per_level[limits].append(
+                    (f"{c.name}/unload", Rows(C=C, lower=np.array([-np.inf]),
+                                              upper=np.array([fmax])), 1.0, 1.0 - s, True)
+                )
+
+
+def _check_columns(rows: Rows, n: int, where: str) -> None:
+    for label, M in (("A", rows.A), ("C", rows.C)):
+        if M is not None and (M.ndim != 2 or M.shape[1] != n):
+            raise InvalidInput(f"{where}: rows {label} has shape {M.shape}, expected (*, {n})")
+
+
+def _ramp(rows: Rows, s: float, x_prev: np.ndarray | None) -> Rows:
+    """Rows of a task ramping in: the previous solution satisfies them at ``s = 0``."""
+    if x_prev is None:
+        x_prev = np.zeros(rows.A.shape[1] if rows.A is not None else rows.C.shape[1])  # type: ignore[union-attr]
+    A, b, C, lower, upper = rows.A, rows.b, rows.C, rows.lower, rows.upper
+    if A is not None and b is not None:
+        b = s * b + (1.0 - s) * (A @ x_prev)
+    if C is not None:
+        cx = C @ x_prev
+        if lower is not None:
+            relaxed = np.minimum(lower, cx)
+            lower = np.where(np.isfinite(lower), s * lower + (1.0 - s) * relaxed, lower)
+        if upper is not None:
+            relaxed = np.maximum(upper, cx)
+            upper = np.where(np.isfinite(upper), s * upper + (1.0 - s) * relaxed, upper)
+    return Rows(A, b, C, lower, upper)
