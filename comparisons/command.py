@@ -1,0 +1,86 @@
+"""``hqp compare``: run the papers' scenarios and print their table or the contract's JSON.
+
+``hqp compare NAME [--json] [--plot DIR] [--controllers ...] [--robot ...] [--duration S]``
+and ``hqp compare --all``. The table (or, with ``--json``, the JSON object of
+ARCHITECTURE.md "Contract: the command line", alone) goes to stdout; progress
+goes to stderr. With ``--all --json`` stdout holds one object
+``{"scenarios": [<one contract object per scenario>]}``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections.abc import Sequence
+from typing import TextIO
+
+from comparisons import CONTROLLERS, SCENARIOS, get_scenario
+from comparisons.report import format_table, write_plots
+from comparisons.threads import single_blas_thread
+from hqp.errors import InvalidInput
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add the arguments of ``hqp compare`` to a (sub)parser."""
+    parser.add_argument(
+        "name", nargs="?", metavar="NAME",
+        help=f"scenario to run: {', '.join(SCENARIOS)}",
+    )
+    parser.add_argument("--all", action="store_true", help="run every scenario")
+    parser.add_argument("--json", action="store_true", help="print JSON alone on stdout")
+    parser.add_argument("--plot", metavar="DIR", help="write one PNG figure per run into DIR")
+    parser.add_argument(
+        "--controllers", nargs="+", metavar="C",
+        help=f"controllers to run (default: all the scenario supports; {', '.join(CONTROLLERS)})",
+    )
+    parser.add_argument("--robot", help="robot name (default: the scenario's)")
+    parser.add_argument(
+        "--duration", type=float, metavar="S", help="simulated duration of each run [s]"
+    )
+
+
+def run(args: argparse.Namespace, out: TextIO = sys.stdout, err: TextIO = sys.stderr) -> int:
+    """Execute ``hqp compare`` with parsed arguments.
+
+    Returns:
+        The exit status (0).
+
+    Raises:
+        UnknownName: Unknown scenario, controller or robot (lists the valid ones).
+        InvalidInput: Neither a scenario name nor ``--all``, or both.
+
+    """
+    if args.all == (args.name is not None):
+        raise InvalidInput(
+            f"hqp compare: give one scenario name ({', '.join(SCENARIOS)}) or --all"
+        )
+    single_blas_thread()
+    names: Sequence[str] = SCENARIOS if args.all else [args.name]
+    scenarios = [get_scenario(n) for n in names]  # unknown names fail before any run
+
+    def progress(message: str) -> None:
+        print(message, file=err, flush=True)
+
+    results = []
+    for scenario in scenarios:
+        result = scenario.run(
+            robot=args.robot,
+            controllers=args.controllers,
+            duration=args.duration,
+            progress=progress,
+        )
+        results.append(result)
+        if args.plot:
+            for path in write_plots(result, args.plot):
+                progress(f"[{result.scenario}] wrote {path}")
+        if not args.json:
+            print(format_table(result), file=out, flush=True)
+            print(file=out)
+    if args.json:
+        if args.all:
+            payload: object = {"scenarios": [r.to_json() for r in results]}
+        else:
+            payload = results[0].to_json()
+        print(json.dumps(payload), file=out, flush=True)
+    return 0
