@@ -1,0 +1,457 @@
+r"""The seed papers' prioritised null-space torque law, on the same tasks as the HQP controller.
+
+This module is the closed-form cross-check of :mod:`hqp.controller`: it turns the same task
+rows into joint torques with the dynamically consistent null-space projections of the
+hierarchy paper (seed 003, eq. 11-23), extended to a floating base standing on its feet with
+the multi-contact form of Sentis, Park and Khatib ("Compliant control of multicontact and
+center-of-mass behaviors in humanoid robots", IEEE T-RO 26(3), 2010).
+
+Notation
+========
+
+``M`` ``(nv, nv)`` joint-space inertia (the seed's ``A``), ``h = b + g`` ``(nv,)`` Coriolis,
+centrifugal and gravity forces, ``S`` ``(na, nv)`` the actuation selection (``U = [0 I]`` of
+Sentis et al.; ``S = I`` on a fixed base), ``tau`` ``(na,)`` the actuated torques. A task ``k``
+(levels numbered from 0 here, from 1 in the seed) is given by its equality rows on the
+accelerations, exactly the ``qdd`` columns of the HQP rows of the task::
+
+    J_k qdd = a_k,        a_k = xdd_ref_k - dJ_k v     (the reference minus the drift)
+
+Fixed base: seed 003, eq. 11-23
+===============================
+
+``M qdd + h = tau``. The torque is a sum of prioritised controls (eq. 11-14)::
+
+    tau = sum_k  N_prec(k)^T J_k^T F_k = sum_k J_k|prec(k)^T F_k,           (eq. 14, 20)
+    J_k|prec(k) = J_k N_prec(k),                                              (eq. 15)
+    Lambda_k|prec(k)^-1 = J_k|prec(k) M^-1 J_k|prec(k)^T,                     (eq. 16)
+    N_prec(k) = I - sum_{i<k} Jbar_i|prec(i) J_i|prec(i),                     (eq. 19)
+    Jbar_i|prec(i) = M^-1 J_i|prec(i)^T Lambda_i|prec(i).
+
+The first identity uses ``N^T N^T = N^T``. Eq. 18 (``J_i M^-1 N_prec(k)^T = 0`` for every
+``i`` in ``prec(k)``) makes the control of level ``k`` invisible to the levels above, and
+``N M^-1 = M^-1 N^T`` gives ``J_k M^-1 N_prec(k)^T J_k^T = Lambda_k|prec(k)^-1``. With
+``qdd_<k = M^-1 (tau_<k - h)`` the acceleration produced by the levels above (and the bias
+forces), the task acceleration is then
+``J_k qdd = J_k qdd_<k + Lambda_k|prec(k)^-1 F_k``, and the force of eq. 21,
+
+    F_k = Lambda_k|prec(k) xdd_ref_k + mu_k|prec(k) + p_k|prec(k)
+        = Lambda_k|prec(k) (a_k - J_k qdd_<k),                                (eq. 17, 21)
+
+i.e. ``mu + p = -Lambda_k|prec(k) J_k M^-1 (tau_<k - h)`` (with ``-dJ_k v`` in ``a_k``),
+compensates the Coriolis, centrifugal and gravity forces seen by the task together with the
+coupling of the higher-priority controls, and yields ``J_k qdd = a_k`` (eq. 17). When the task
+is singular within the hierarchy, ``Lambda_k|prec(k)^-1`` is singular and is inverted on its
+range only (eq. 22-23)::
+
+    Lambda_k|prec(k)^-1 = U_r Sigma_r U_r^T  (+ U_n 0 U_n^T),                  (eq. 22)
+    F_k = U_r Sigma_r^-1 U_r^T (a_k - J_k qdd_<k).                            (eq. 23)
+
+An eigenvalue counts as zero when it is below ``eig_tol`` times the largest eigenvalue of the
+task's own (unprojected) ``J_k M^-1 J_k^T`` (default ``eig_tol = 1e-9``; eigenvalues of
+``Lambda^-1`` scale as squared singular values, so this is a relative singular-value threshold
+of about 3e-5). The eigenvalues are the law's feasibility measure (seed 003, sec. 4.3): they
+are reported per level (:class:`LawLevel`) and, for each task, as ``TaskStatus.sigma_min``.
+
+Constraint torques come first (eq. 10-12): the joint-limit constraint of the seed's
+experiment (eq. 25, the joints that entered their activation zone are driven to a safety
+position, :mod:`hqp.tasks.joint_limit_zone`) is the top level of the hierarchy, the
+operational tasks are projected into its null space.
+
+Floating base on its feet: Sentis, Park, Khatib 2010
+====================================================
+
+``M qdd + h = S^T tau + J_s^T f`` with the support (contact) rows ``J_s qdd = b_s`` (rigid
+contacts: ``b_s = -dJ_s v``, plus the stabilisation of :class:`~hqp.tasks.contact.Contact`).
+Eliminating the contact forces::
+
+    Lambda_s^-1 = J_s M^-1 J_s^T,    Jbar_s = M^-1 J_s^T Lambda_s,    N_s = I - Jbar_s J_s,
+    f   = Lambda_s (b_s - J_s M^-1 (S^T tau - h)),
+    qdd = M^-1 N_s^T S^T tau + qdd_0,       qdd_0 = -M^-1 N_s^T h + Jbar_s b_s,
+
+(support-consistent dynamics: ``N_s M^-1 = M^-1 N_s^T``, ``J_s M^-1 N_s^T = 0``). ``qdd_0`` is
+the contact-consistent acceleration without torques. A task sees the torques through
+
+    J_k qdd = J_k* Phi tau + J_k qdd_0,
+    Phi = (S N_s) M^-1 (S N_s)^T                 (na, na), rank nv - rank(J_s),
+    J_k* = J_k (S N_s)bar = J_k M^-1 N_s^T S^T Phi^+     (support-consistent task Jacobian),
+
+where ``(S N_s)bar = M^-1 (S N_s)^T Phi^+`` is the dynamically consistent inverse of ``S N_s``
+and ``J_k* Phi = J_k M^-1 N_s^T S^T`` (the columns of ``S N_s M^-1 J_k^T`` lie in the range of
+``Phi``). This is the fixed-base problem with ``M^-1`` replaced by ``Phi`` (positive
+*semi*-definite) and ``J_k`` by ``J_k*``, so eq. 14-23 apply unchanged in torque space::
+
+    Lambda*_k|p^-1 = J*_k|p Phi J*_k|p^T,   J*_k|p = J_k* N*_prec(k),
+    N*_prec(k+1) = N*_prec(k) - Jbar*_k|p J*_k|p,   Jbar*_k|p = Phi J*_k|p^T Lambda*_k|p,
+    tau = sum_k J*_k|p^T F_k + tau_int,    F_k = Lambda*_k|p (a_k - J_k qdd_<k).
+
+On a fixed base ``Phi = M^-1`` and ``J* = J``: the same code runs both cases.
+
+**Internal forces.** ``null(Phi) = null(N_s^T S^T)``: a torque ``tau_int`` there gives
+``S^T tau_int = J_s^T f_int`` with ``f_int`` a self-equilibrated contact wrench (zero net
+force on the base), it changes the contact forces by ``-f_int`` and no acceleration at all
+(Sentis et al.'s internal forces). Every ``J*^T F`` lies in ``range(Phi^+) = range(Phi)``, so
+the plain law (``internal_forces="none"``) sends no internal-force torque. With
+``internal_forces="min-norm"`` the law adds the ``tau_int`` in ``null(Phi)`` that makes the
+contact wrenches ``f`` of least norm (feet share the load; no squeezing), leaving ``qdd``
+unchanged.
+
+What links the law to the HQP solution
+======================================
+
+*Fixed base.* ``tau^T M^-1 tau = (qdd + M^-1 h)^T M (qdd + M^-1 h)``. The law's torque lies in
+``range([J_1^T ... J_N^T])`` (each ``N_prec^T J_k^T`` does), which is the Lagrange condition of
+``min tau^T M^-1 tau`` under the task accelerations. Level by level, the task acceleration the
+law reaches is ``J_k qdd_<k`` plus the Euclidean projection of ``a_k - J_k qdd_<k`` on
+``range(Lambda_k|p^-1) = range(J_k N_prec(k)) = J_k null(J_<k)`` (``Lambda^-1`` is symmetric),
+which is exactly the least-squares optimum of level ``k`` over the optimal set of the levels
+above, and lower levels never change it (eq. 18). Hence: *on an equality-only stack whose rank
+decisions agree (the levels are feasible, or their projected matrices have well separated zero
+singular values), the law returns the lexicographic optimum of the task levels that minimises*
+``(qdd + M^-1 h)^T M (qdd + M^-1 h)``, i.e. HQP's ``solve`` with ``final_metric = M`` and
+``final_target = -M^-1 h`` on ``qdd`` -- the same ``qdd`` and ``tau``. With ``final_target = 0``
+HQP minimises the kinetic-energy-like ``qdd^T M qdd`` instead and differs wherever redundancy
+is left and ``h`` has a component there.
+
+*Floating base.* On the support-consistent set ``{J_s qdd = b_s}`` every torque producing
+``qdd`` gives ``tau^T Phi tau = (qdd - qdd_0)^T M (qdd - qdd_0)``, and ``qdd_0`` is the
+``M``-orthogonal projection of ``-M^-1 h`` on that set, so
+``(qdd + M^-1 h)^T M (qdd + M^-1 h) = (qdd - qdd_0)^T M (qdd - qdd_0) + const`` there. The law's
+torque is the minimiser of ``tau^T Phi tau`` under the task accelerations (same Lagrange
+argument in torque space) with no component in ``null(Phi)``. Therefore, with the HQP stack
+``[physics: base rows of the dynamics + contact rows | task levels ...]`` over
+``x = [qdd | f]``:
+
+1. every level reaches the same task accelerations ``J_k qdd`` under both (for every
+   feasible level, and for infeasible ones with agreeing rank decisions);
+2. HQP with ``final_metric = M`` and ``final_target = -M^-1 h`` on the ``qdd`` block returns the
+   law's ``qdd`` (whatever the law does with internal forces); the contact wrenches and torques
+   may differ by an internal-force pair (``tau_int`` in ``null(Phi)``, ``f_int``);
+3. with ``tau = T x + t0`` the torque map of the HQP (:func:`hqp.tasks.dynamics.torque_map`)
+   and ``W = Phi + P_null(Phi)``, HQP with ``final_metric = T^T W T`` and
+   ``final_target = -(T^T W T)^+ T^T W t0`` returns the law's ``qdd``, ``f`` and ``tau`` with
+   ``internal_forces="none"`` (the cost is ``||qdd - qdd_0||_M^2 + ||P_null(Phi) tau||^2``: its
+   first term is the law's criterion, its second is zeroed by the law and can be zeroed
+   independently of ``qdd``). :func:`floating_base_metric` builds this pair.
+
+These statements hold for the equality rows. The law has no inequalities: friction cones,
+torque limits and the HQP's viable joint limits are not enforced (only reported), which is
+what the activation-zone primitive is for.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.linalg as sla
+
+from hqp.errors import InvalidInput, check_array
+
+logger = logging.getLogger(__name__)
+
+EIG_TOL = 1e-9
+"""Default relative threshold on the eigenvalues of ``Lambda^-1`` (eq. 22): an eigenvalue is
+zero when below ``EIG_TOL`` times the largest eigenvalue of the task's unprojected
+``J* Phi J*^T``."""
+
+PHI_TOL = 1e-10
+"""Relative threshold for the rank of the support-consistent ``Phi`` and of ``Lambda_s^-1``."""
+
+
+@dataclass(frozen=True)
+class LawLevel:
+    """What the law did on one level.
+
+    Attributes:
+        name: The level's name.
+        eigenvalues: Eigenvalues of ``Lambda_k|prec(k)^-1`` (eq. 22), descending, ``(m,)``
+            [units of the rows per N m, e.g. 1/(kg m^2) for a position task on a fixed base].
+        rank: Number of eigenvalues kept (above the threshold).
+        threshold: Eigenvalue threshold used on this level.
+        residual: ``J_k qdd - a_k`` at the final accelerations, ``(m,)``.
+        force: ``F_k`` ``(m,)`` (eq. 21 or 23).
+        target_norm: ``|a_k|`` (scale of the satisfaction test).
+
+    """
+
+    name: str
+    eigenvalues: np.ndarray
+    rank: int
+    threshold: float
+    residual: np.ndarray
+    force: np.ndarray
+    target_norm: float = 0.0
+
+    @property
+    def eig_min(self) -> float:
+        """Smallest eigenvalue of ``Lambda^-1`` (0 for a level without rows)."""
+        return float(self.eigenvalues[-1]) if self.eigenvalues.size else 0.0
+
+    @property
+    def singular(self) -> bool:
+        """Whether an eigenvalue fell below the threshold (eq. 22)."""
+        return self.rank < self.eigenvalues.size
+
+    @property
+    def satisfied(self) -> bool:
+        """Whether ``J_k qdd = a_k`` holds: residual norm at most ``1e-6 * max(1, |a_k|)``."""
+        return bool(np.linalg.norm(self.residual) <= 1e-6 * max(1.0, self.target_norm))
+
+
+@dataclass(frozen=True)
+class LawSolution:
+    """Result of the prioritised torque law.
+
+    Attributes:
+        tau: Actuated torques ``(na,)`` [N m] (``na = nv`` on a fixed base).
+        qdd: Joint accelerations ``(nv,)`` the torques produce (with the support held).
+        f: Support forces in the coordinates of the support rows ``(ns,)`` (empty without
+            support): ``M qdd + h = S^T tau + J_s^T f``.
+        levels: One :class:`LawLevel` per level, highest priority first.
+        tau_internal: Internal-force part of ``tau`` (in ``null(Phi)``) ``(na,)``.
+        phi: Torque-space inverse inertia ``Phi`` ``(na, na)`` (``M^-1`` on a fixed base).
+        phi_pinv: ``Phi^+`` ``(na, na)``.
+        torque_to_qdd: ``B = M^-1 N_s^T S^T`` ``(nv, na)``: ``qdd = B tau + qdd0``.
+        qdd0: Support-consistent acceleration without torques ``(nv,)``.
+        null_spaces: ``N*_prec(k)`` ``(na, na)`` for each level ``k`` and one more after the
+            last level (eq. 19 in torque space).
+        timings: Wall-clock seconds (``"law"``).
+
+    """
+
+    tau: np.ndarray
+    qdd: np.ndarray
+    f: np.ndarray
+    levels: tuple[LawLevel, ...]
+    tau_internal: np.ndarray
+    phi: np.ndarray
+    phi_pinv: np.ndarray
+    torque_to_qdd: np.ndarray
+    qdd0: np.ndarray
+    null_spaces: tuple[np.ndarray, ...]
+    timings: dict[str, float] = field(default_factory=dict)
+
+    def task_jacobian(self, J: np.ndarray) -> np.ndarray:
+        """Support-consistent Jacobian ``J* = J B Phi^+`` ``(m, na)`` of rows ``J`` ``(m, nv)``."""
+        return J @ self.torque_to_qdd @ self.phi_pinv
+
+    def inverse_inertia(self, J: np.ndarray, level: int) -> np.ndarray:
+        """``Lambda^-1`` ``(m, m)`` of rows ``J`` projected on the null space above ``level``.
+
+        ``J*_|prec Phi J*_|prec^T`` with ``J*_|prec = J* N*_prec(level)`` (eq. 15-16); its
+        eigenvalues are the feasibility measure of a single task of a level.
+        """
+        Jp = self.task_jacobian(J) @ self.null_spaces[level]
+        return Jp @ self.phi @ Jp.T
+
+
+def _sym_pinv(A: np.ndarray, rel_tol: float, ref: float | None = None) -> tuple[
+    np.ndarray, np.ndarray, int, float
+]:
+    """Pseudo-inverse of a symmetric PSD matrix by eigen-decomposition (eq. 22-23).
+
+    Returns:
+        ``(A^+, eigenvalues descending, rank, threshold)``.
+
+    """
+    m = A.shape[0]
+    if m == 0:
+        return np.zeros((0, 0)), np.zeros(0), 0, 0.0
+    w, U = np.linalg.eigh(0.5 * (A + A.T))
+    w = w[::-1]
+    U = U[:, ::-1]
+    scale = float(w[0]) if ref is None else float(ref)
+    threshold = rel_tol * max(scale, 0.0)
+    if threshold <= 0.0:
+        threshold = np.finfo(float).tiny
+    keep = w > threshold
+    r = int(np.count_nonzero(keep))
+    Ur = U[:, :r]
+    pinv = (Ur / w[:r]) @ Ur.T
+    return pinv, np.maximum(w, 0.0), r, threshold
+
+
+def prioritized_torques(
+    M: np.ndarray,
+    h: np.ndarray,
+    levels: Sequence[tuple[np.ndarray, np.ndarray]],
+    *,
+    S: np.ndarray | None = None,
+    support: tuple[np.ndarray, np.ndarray] | None = None,
+    names: Sequence[str] | None = None,
+    eig_tol: float = EIG_TOL,
+    internal_forces: str = "none",
+) -> LawSolution:
+    """Compute the prioritised torque law on plain matrices (seed 003 eq. 11-23, Sentis 2010).
+
+    Args:
+        M: Joint-space inertia ``(nv, nv)`` (symmetric positive definite).
+        h: Coriolis, centrifugal and gravity forces ``b + g`` ``(nv,)`` [N m].
+        levels: Per level, highest priority first, ``(J_k (m_k, nv), a_k (m_k,))``: the task
+            rows ``J_k qdd = a_k`` (``a_k = xdd_ref - dJ v``). Levels with 0 rows are allowed.
+        S: Actuation selection ``(na, nv)`` (default: identity, fully actuated).
+        support: Support rows ``(J_s (ns, nv), b_s (ns,))``: ``J_s qdd = b_s`` held by the
+            contact forces ``f`` with ``M qdd + h = S^T tau + J_s^T f`` (``None``: no contact).
+        names: Level names for the report.
+        eig_tol: Relative eigenvalue threshold of eq. 22 (see :data:`EIG_TOL`).
+        internal_forces: ``"none"`` (the plain law, no torque in ``null(Phi)``) or
+            ``"min-norm"`` (add the internal-force torque that minimises ``||f||``).
+
+    Returns:
+        The torques, accelerations, support forces and a per-level report.
+
+    Raises:
+        InvalidInput: Shapes do not match, non-finite entries, ``M`` not positive definite,
+            bad ``eig_tol`` or ``internal_forces``.
+
+    """
+    t_start = time.perf_counter()
+    M = check_array(M, (None, None), "prioritized_torques: M")
+    nv = M.shape[0]
+    if M.shape != (nv, nv):
+        raise InvalidInput(f"prioritized_torques: M must be square, got {M.shape}")
+    h = check_array(h, (nv,), "prioritized_torques: h")
+    S = np.eye(nv) if S is None else check_array(S, (None, nv), "prioritized_torques: S")
+    na = S.shape[0]
+    if not (np.isfinite(eig_tol) and 0.0 < eig_tol < 1.0):
+        raise InvalidInput(f"prioritized_torques: eig_tol must be in (0, 1), got {eig_tol}")
+    if internal_forces not in ("none", "min-norm"):
+        raise InvalidInput(
+            f"prioritized_torques: internal_forces must be 'none' or 'min-norm', "
+            f"got {internal_forces!r}"
+        )
+    checked: list[tuple[np.ndarray, np.ndarray]] = []
+    for k, (J, a) in enumerate(levels):
+        J = check_array(J, (None, nv), f"prioritized_torques: level {k} J")
+        a = check_array(a, (J.shape[0],), f"prioritized_torques: level {k} a")
+        checked.append((J, a))
+    if names is None:
+        names = [f"level {k}" for k in range(len(checked))]
+    elif len(names) != len(checked):
+        raise InvalidInput("prioritized_torques: names and levels differ in length")
+
+    try:
+        chol = sla.cho_factor(M)
+    except np.linalg.LinAlgError:
+        raise InvalidInput("prioritized_torques: M is not positive definite") from None
+    Minv = sla.cho_solve(chol, np.eye(nv))
+    Minv = 0.5 * (Minv + Minv.T)
+
+    # Support-consistent dynamics (Sentis et al. 2010).
+    if support is not None:
+        Js = check_array(support[0], (None, nv), "prioritized_torques: support J_s")
+        bs = check_array(support[1], (Js.shape[0],), "prioritized_torques: support b_s")
+    else:
+        Js, bs = np.zeros((0, nv)), np.zeros(0)
+    if Js.shape[0]:
+        MinvJsT = Minv @ Js.T
+        Lambda_s, _, _, _ = _sym_pinv(Js @ MinvJsT, PHI_TOL)
+        Jbar_s = MinvJsT @ Lambda_s  # (nv, ns)
+        Ns = np.eye(nv) - Jbar_s @ Js
+        NsMinv = Ns @ Minv  # = M^-1 N_s^T
+        B = NsMinv @ S.T  # (nv, na)
+        qdd0 = -NsMinv @ h + Jbar_s @ bs
+    else:
+        Lambda_s = np.zeros((0, 0))
+        B = Minv @ S.T
+        qdd0 = -Minv @ h
+    Phi = S @ B
+    Phi = 0.5 * (Phi + Phi.T)
+    if support is None and na == nv:
+        Phi_pinv = M.copy() if np.allclose(S, np.eye(nv)) else _sym_pinv(Phi, PHI_TOL)[0]
+    else:
+        Phi_pinv = _sym_pinv(Phi, PHI_TOL)[0]
+
+    tau = np.zeros(na)
+    N = np.eye(na)
+    null_spaces = [N.copy()]
+    records = []
+    qdd_prev = qdd0.copy()
+    for (J, a), name in zip(checked, names):
+        m = J.shape[0]
+        if m == 0:
+            records.append((name, np.zeros(0), 0, 0.0, np.zeros(0)))
+            null_spaces.append(N.copy())
+            continue
+        G = J @ B  # task acceleration per unit torque, = J* Phi
+        Jstar = G @ Phi_pinv  # (m, na), J_k (S N_s)bar
+        Jp = Jstar @ N  # eq. 15
+        ref = float(np.linalg.eigvalsh(Jstar @ Phi @ Jstar.T)[-1])
+        Lam, eig, rank, thr = _sym_pinv(Jp @ Phi @ Jp.T, eig_tol, ref)  # eq. 16, 22
+        F = Lam @ (a - J @ qdd_prev)  # eq. 21 / 23
+        tau_k = Jp.T @ F  # eq. 20
+        tau += tau_k
+        qdd_prev = qdd_prev + B @ tau_k
+        N = N - (Phi @ Jp.T @ Lam) @ Jp  # eq. 19, recursively
+        null_spaces.append(N.copy())
+        records.append((name, eig, rank, thr, F))
+
+    # Internal forces: torques in null(Phi) change f, not qdd.
+    tau_int = np.zeros(na)
+    if internal_forces == "min-norm" and Js.shape[0]:
+        w, U = np.linalg.eigh(Phi)
+        Z = U[:, w <= PHI_TOL * max(float(w[-1]), 0.0)]
+        if Z.shape[1]:
+            # f(tau) = Lambda_s (b_s - J_s M^-1 (S^T tau - h)); d f / d tau = -Lambda_s J_s M^-1 S^T
+            Df = -Lambda_s @ Js @ Minv @ S.T @ Z
+            f_plain = Lambda_s @ (bs - Js @ Minv @ (S.T @ tau - h))
+            y = np.linalg.lstsq(Df, -f_plain, rcond=None)[0]
+            tau_int = Z @ y
+            tau = tau + tau_int
+
+    qdd = qdd_prev
+    if Js.shape[0]:
+        f = Lambda_s @ (bs - Js @ Minv @ (S.T @ tau - h))
+    else:
+        f = np.zeros(0)
+    levels_out = tuple(
+        LawLevel(name, eig, rank, thr, J @ qdd - a, F, float(np.linalg.norm(a)))
+        for (name, eig, rank, thr, F), (J, a) in zip(records, checked)
+    )
+    return LawSolution(
+        tau=tau,
+        qdd=qdd,
+        f=f,
+        levels=levels_out,
+        tau_internal=tau_int,
+        phi=Phi,
+        phi_pinv=Phi_pinv,
+        torque_to_qdd=B,
+        qdd0=qdd0,
+        null_spaces=tuple(null_spaces),
+        timings={"law": time.perf_counter() - t_start},
+    )
+
+
+def floating_base_metric(
+    solution: LawSolution, T: np.ndarray, t0: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """HQP final metric and target that reproduce the law's ``qdd``, ``f`` and ``tau``.
+
+    With the HQP torque map ``tau = T x + t0`` (:func:`hqp.tasks.dynamics.torque_map`) and
+    ``W = Phi + P_null(Phi)``, returns ``Q = T^T W T`` and ``x_t = -Q^+ T^T W t0``, so that
+    ``(x - x_t)^T Q (x - x_t) = tau^T W tau + const`` (module docstring, statement 3). On a
+    fixed base ``W = M^-1`` and the pair is equivalent to ``final_metric = M``,
+    ``final_target = -M^-1 h`` on ``qdd``.
+
+    Args:
+        solution: A law solution at the same state (for ``Phi``).
+        T: Torque map ``(na, n)``.
+        t0: Torque offset ``(na,)`` [N m].
+
+    Returns:
+        ``(final_metric (n, n), final_target (n,))``.
+
+    """
+    Phi = solution.phi
+    w, U = np.linalg.eigh(Phi)
+    Z = U[:, w <= PHI_TOL * max(float(w[-1]), 0.0)]
+    W = Phi + Z @ Z.T
+    Q = T.T @ W @ T
+    Q = 0.5 * (Q + Q.T)
+    target = -np.linalg.pinv(Q, rcond=1e-12, hermitian=True) @ (T.T @ W @ t0)
+    return Q, target
