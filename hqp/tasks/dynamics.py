@@ -1,0 +1,170 @@
+"""Floating-base dynamics: the unactuated rows of the equation of motion.
+
+The equation of motion over the decision vector ``x = [qdd | f_1 | ... | f_k]``
+(:mod:`hqp.layout`) is
+
+    M qdd + h = S^T tau + sum_c J_c^T f_c,
+
+with ``J_c`` the ``LOCAL_WORLD_ALIGNED`` frame Jacobian of contact ``c`` (its
+6 rows for a surface contact, its first 3 rows for a point contact) and ``S``
+the actuation selection (:meth:`RobotModel.selection`). Its first 6 rows (the
+free flyer's, where ``S^T tau`` is zero) do not involve the torques; they are
+the physics rows of the hierarchy paper's floating base (eq. 1-3 of seed 003
+with the contact forces as decision variables):
+
+    M_u qdd - sum_c J_{c,u}^T f_c = -h_u        (6 rows)
+
+The remaining rows give the torques, an affine function of ``x``:
+
+    tau = S (M qdd + h - sum_c J_c^T f_c) = T x + t0.
+
+A fixed-base robot has no unactuated rows (:class:`FloatingBaseDynamics`
+returns no rows) but :func:`torque_map` still applies.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from hqp.errors import InvalidInput
+from hqp.layout import ContactType
+from hqp.tasks.base import Category, Rows, Task
+
+if TYPE_CHECKING:
+    from hqp.layout import ContactSlot, Layout
+    from hqp.model import RobotModel
+
+
+def contact_jacobian(state: RobotModel, slot: ContactSlot, where: str = "") -> np.ndarray:
+    """Jacobian whose transpose maps a contact slot's wrench to generalized forces.
+
+    Args:
+        state: Updated robot model.
+        slot: The contact slot (surface: wrench ``[force, torque]`` at the frame
+            origin, world axes; point: force, world axes).
+        where: Prefix of error messages (e.g. the primitive's name).
+
+    Returns:
+        ``J_c`` ``(6, nv)`` (surface) or ``(3, nv)`` (point): rows of the
+        ``LOCAL_WORLD_ALIGNED`` frame Jacobian.
+
+    Raises:
+        InvalidFrame: The slot's frame is not in the model.
+
+    """
+    if where:
+        state.frame_id(slot.frame, where)
+    J = state.frame_jacobian(slot.frame)
+    return J if slot.kind is ContactType.SURFACE else J[:3]
+
+
+def _check_layout(state: RobotModel, layout: Layout, where: str) -> None:
+    if layout.nv != state.nv:
+        raise InvalidInput(f"{where}: layout has nv={layout.nv}, robot has nv={state.nv}")
+
+
+def generalized_contact_matrix(state: RobotModel, layout: Layout, where: str = "") -> np.ndarray:
+    """``[J_1^T | ... | J_k^T]`` ``(nv, n - nv)``: generalized force of the contact slots.
+
+    Raises:
+        InvalidFrame: A slot's frame is not in the model.
+        InvalidInput: The layout does not match the robot.
+
+    """
+    _check_layout(state, layout, where or "generalized_contact_matrix")
+    JT = np.zeros((state.nv, layout.n - layout.nv))
+    for slot in layout.contacts:
+        cols = slice(slot.start - layout.nv, slot.start - layout.nv + slot.size)
+        JT[:, cols] = contact_jacobian(state, slot, where).T
+    return JT
+
+
+def torque_map(state: RobotModel, layout: Layout, where: str = "") -> tuple[np.ndarray, np.ndarray]:
+    """Actuated torques as an affine map of ``x``: ``tau = T x + t0``.
+
+    ``tau = S (M qdd + h - sum_c J_c^T f_c)``, so ``T = S [M | -J_1^T ... -J_k^T]``
+    ``(na, n)`` and ``t0 = S h`` ``(na,)`` [N m].
+
+    Args:
+        state: Updated robot model.
+        layout: Decision-variable layout.
+        where: Prefix of error messages.
+
+    Returns:
+        ``(T, t0)``.
+
+    Raises:
+        InvalidFrame: A contact frame is not in the model.
+        InvalidInput: The layout does not match the robot.
+
+    """
+    act = state.actuated
+    T = np.zeros((state.na, layout.n))
+    T[:, : layout.nv] = state.M[act]
+    T[:, layout.nv :] = -generalized_contact_matrix(state, layout, where)[act]
+    return T, state.h[act].copy()
+
+
+def joint_torques(state: RobotModel, layout: Layout, x: np.ndarray) -> np.ndarray:
+    """Actuated joint torques of a solution: ``tau = S (M qdd + h - sum_c J_c^T f_c)``.
+
+    Args:
+        state: Robot model updated at the state the solution was computed for.
+        layout: Decision-variable layout.
+        x: Solution ``(n,)`` ``[qdd | f_1 | ... | f_k]``.
+
+    Returns:
+        ``tau`` ``(na,)`` [N m] (actuated joints, velocity order).
+
+    Raises:
+        InvalidInput: ``x`` of the wrong shape or not finite.
+
+    """
+    from hqp.errors import check_array
+
+    x = check_array(x, (layout.n,), "joint_torques: x")
+    T, t0 = torque_map(state, layout)
+    return T @ x + t0
+
+
+class FloatingBaseDynamics(Task):
+    """Physics rows: the 6 unactuated rows of the equation of motion (equalities).
+
+    ``[M_u | -J_{1,u}^T ... -J_{k,u}^T] x = -h_u`` where ``u`` are the free-flyer
+    rows; every contact slot of the layout enters (an inactive contact's slot
+    is held at zero by its :class:`~hqp.tasks.contact.Contact` rows). Returns
+    no rows on a fixed-base robot.
+
+    Args:
+        name: Task name.
+        weight: Weight within its level (the rows are exact physics; keep 1).
+
+    """
+
+    category = Category.PHYSICS
+
+    def __init__(self, name: str = "dynamics", weight: float = 1.0) -> None:
+        super().__init__(name, weight)
+
+    def rows(self, state: RobotModel, layout: Layout, dt: float, t: float) -> Rows:
+        """Return the unactuated rows ``(6, n)`` (none on a fixed base).
+
+        Raises:
+            InvalidFrame: A contact frame of the layout is not in the model.
+            InvalidInput: The layout does not match the robot.
+
+        """
+        _check_layout(state, layout, self.where())
+        nb = state.nv_base
+        if nb == 0:
+            return Rows()
+        A = np.zeros((nb, layout.n))
+        A[:, : layout.nv] = state.M[:nb]
+        A[:, layout.nv :] = -generalized_contact_matrix(state, layout, self.where())[:nb]
+        return Rows(A=A, b=-state.h[:nb].copy())
+
+    def torques(self, state: RobotModel, layout: Layout, x: np.ndarray) -> np.ndarray:
+        """Actuated torques of a solution (see :func:`joint_torques`)."""
+        return joint_torques(state, layout, x)

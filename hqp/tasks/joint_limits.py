@@ -1,0 +1,207 @@
+"""Viable joint position and velocity limits as acceleration bounds.
+
+Following Del Prete, "Joint position and velocity bounds in discrete-time
+acceleration/torque control of robot manipulators", IEEE RA-L 2018: with the
+control period ``dt`` and the acceleration ``a`` held over the period,
+
+    q+ = q + dt v + dt^2 a / 2,        v+ = v + dt a,
+
+each actuated joint gets ``lb <= a <= ub`` with ``ub`` the smallest of
+
+* the one-step position bound ``(2 / dt^2) (q_max - q - dt v)`` (``q+ <= q_max``);
+* the viability bound: after the step, braking at the maximum deceleration
+  ``A`` (``qdd_max``) must stop the joint before ``q_max``, i.e.
+  ``(v+)^2 <= 2 A (q_max - q+)``, a quadratic in ``a``:
+
+      dt^2 a^2 + dt (2 v + A dt) a + v^2 + 2 A (q + dt v - q_max) <= 0,
+
+  whose larger root is the bound (at a state that is not viable, where the
+  discriminant is negative, the bound is ``-A``: brake);
+* the velocity bound ``(v_max - v) / dt`` (``v+ <= v_max``);
+* the acceleration bound ``A``;
+
+and ``lb`` the mirror image. Braking at ``-A`` from a viable state keeps the
+state viable (the braking distance ``v^2 / (2 A)`` is exact for piecewise
+constant accelerations), so ``-A <= ub`` at every viable state: the bounds
+never ask for more deceleration than ``A``. If the bounds cross at a state
+that is not viable (e.g. ``|v| > v_max`` after a disturbance), both are set to
+the braking acceleration ``-A sign(v)``.
+
+``A`` must be an acceleration the robot can always produce for the joint.
+Pass it as ``qdd_max`` (scalar or per joint, constant: the viability argument
+of the paper assumes constant bounds), e.g. computed once at a nominal
+configuration with :func:`max_acceleration_from_torques`. Without
+``qdd_max``, that estimate is recomputed at every state (state-dependent
+``A``: viability then holds only approximately).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from hqp.errors import InvalidGain, check_array
+from hqp.tasks.base import Category, Rows, Task
+
+if TYPE_CHECKING:
+    from hqp.layout import Layout
+    from hqp.model import RobotModel
+
+
+def max_acceleration_from_torques(state: RobotModel, margin: float = 0.5) -> np.ndarray:
+    """Estimate, per actuated joint, an acceleration the torque limits can produce at ``state``.
+
+    For joint ``i`` alone accelerating by ``A_i`` (other accelerations zero),
+    the actuated torques are ``tau = M_{a,i} A_i + h_a``; ``A_i`` is the
+    largest value with ``|tau_j| <= tau_max_j`` for every actuated ``j``:
+
+        A_i = margin * min_j (tau_max_j - |h_j|)_+ / |M_ji|.
+
+    It ignores the floating base's own dynamics and several joints braking at
+    once, hence the ``margin``.
+
+    Args:
+        state: Updated robot model (``M``, ``h``, ``tau_max``).
+        margin: Fraction of the estimate kept, in ``(0, 1]``.
+
+    Returns:
+        ``A`` ``(na,)`` [rad/s^2 or m/s^2] (``inf`` for unbounded torques).
+
+    Raises:
+        InvalidGain: ``margin`` outside ``(0, 1]``.
+
+    """
+    if not (0.0 < margin <= 1.0):
+        raise InvalidGain(f"max_acceleration_from_torques: margin must be in (0, 1], got {margin}")
+    act = state.actuated
+    Maa = np.abs(state.M[act, act])
+    room = np.maximum(state.tau_max - np.abs(state.h[act]), 0.0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.where(Maa > 1e-12, room[:, None] / Maa, np.inf)
+    return margin * ratio.min(axis=0)
+
+
+def _upper_bounds(
+    q: np.ndarray, v: np.ndarray, q_max: np.ndarray, v_max: np.ndarray, A: np.ndarray, dt: float
+) -> np.ndarray:
+    """Upper acceleration bounds toward ``q_max`` (one-step, viability, velocity, acceleration)."""
+    pos = 2.0 * (q_max - q - dt * v) / dt**2
+    vel = (v_max - v) / dt
+    via = np.full_like(q, np.inf)
+    finite = np.isfinite(A) & np.isfinite(q_max)
+    if np.any(finite):
+        Af = A[finite]
+        qf, vf, qm = q[finite], v[finite], q_max[finite]
+        b = dt * (2.0 * vf + Af * dt)
+        c = vf**2 + 2.0 * Af * (qf + dt * vf - qm)
+        disc = b**2 - 4.0 * dt**2 * c
+        root = (-b + np.sqrt(np.maximum(disc, 0.0))) / (2.0 * dt**2)
+        via[finite] = np.where(disc >= 0.0, root, -Af)
+    return np.minimum.reduce([pos, vel, via, A])
+
+
+class JointLimits(Task):
+    """Viable position, velocity and acceleration bounds on ``qdd`` (JOINT_LIMITS).
+
+    Rows: ``lb <= qdd_a <= ub`` over the actuated joints (``na`` rows), see the
+    module docstring for ``lb`` and ``ub``.
+
+    Args:
+        name: Task name.
+        qdd_max: Maximum deceleration ``A`` per actuated joint ``(na,)`` or a
+            scalar [rad/s^2] (> 0, ``inf`` allowed); ``None``: estimated at each
+            state by :func:`max_acceleration_from_torques` with ``margin``.
+        margin: Fraction used by the estimate (``qdd_max=None`` only).
+        position_margin: Distance kept from the model's position limits [rad or m] (>= 0).
+        velocity_scale: Fraction of the model's velocity limits used, in ``(0, 1]``.
+        weight: Weight within its level.
+
+    Raises:
+        InvalidGain: Non-positive ``qdd_max``, negative margin, bad scale.
+
+    """
+
+    category = Category.JOINT_LIMITS
+
+    def __init__(
+        self,
+        name: str = "joint_limits",
+        qdd_max: np.ndarray | float | None = None,
+        *,
+        margin: float = 0.5,
+        position_margin: float = 0.0,
+        velocity_scale: float = 1.0,
+        weight: float = 1.0,
+    ) -> None:
+        super().__init__(name, weight)
+        w = self.where()
+        self.qdd_max: np.ndarray | None = None
+        if qdd_max is not None:
+            arr = check_array(np.atleast_1d(qdd_max), (None,), f"{w}: qdd_max", allow_inf=True)
+            if np.any(arr <= 0):
+                raise InvalidGain(f"{w}: qdd_max must be > 0, got {arr}")
+            self.qdd_max = arr
+        if not (0.0 < margin <= 1.0):
+            raise InvalidGain(f"{w}: margin must be in (0, 1], got {margin}")
+        if not (np.isfinite(position_margin) and position_margin >= 0.0):
+            raise InvalidGain(f"{w}: position_margin must be finite, >= 0: {position_margin}")
+        if not (0.0 < velocity_scale <= 1.0):
+            raise InvalidGain(f"{w}: velocity_scale must be in (0, 1], got {velocity_scale}")
+        self.margin = float(margin)
+        self.position_margin = float(position_margin)
+        self.velocity_scale = float(velocity_scale)
+        self._violation = np.zeros(0)
+
+    def max_acceleration(self, state: RobotModel) -> np.ndarray:
+        """Return the maximum deceleration ``A`` ``(na,)`` used at ``state``.
+
+        Raises:
+            InvalidGain: ``qdd_max`` of a size other than 1 or ``na``.
+
+        """
+        if self.qdd_max is None:
+            return max_acceleration_from_torques(state, self.margin)
+        if self.qdd_max.size not in (1, state.na):
+            raise InvalidGain(
+                f"{self.where()}: qdd_max has {self.qdd_max.size} entries, "
+                f"robot has {state.na} joints"
+            )
+        return np.broadcast_to(self.qdd_max, (state.na,)).astype(float)
+
+    def bounds(self, state: RobotModel, dt: float) -> tuple[np.ndarray, np.ndarray]:
+        """Acceleration bounds ``(lb, ub)``, each ``(na,)``, at ``state`` for the period ``dt``.
+
+        Raises:
+            InvalidGain: ``dt`` not positive.
+
+        """
+        if not (np.isfinite(dt) and dt > 0.0):
+            raise InvalidGain(f"{self.where()}: dt must be > 0, got {dt}")
+        q = state.q[state.actuated_q]
+        v = state.v[state.actuated]
+        q_lo = state.q_lower + self.position_margin
+        q_hi = state.q_upper - self.position_margin
+        v_max = self.velocity_scale * state.v_max
+        A = self.max_acceleration(state)
+        ub = _upper_bounds(q, v, q_hi, v_max, A, dt)
+        lb = -_upper_bounds(-q, -v, -q_lo, v_max, A, dt)
+        crossed = lb > ub
+        if np.any(crossed):
+            brake = np.where(v >= 0.0, -A, A)
+            brake = np.where(np.isfinite(brake), brake, np.where(v >= 0.0, ub, lb))
+            lb = np.where(crossed, brake, lb)
+            ub = np.where(crossed, brake, ub)
+        self._violation = np.maximum(q - state.q_upper, 0.0) + np.maximum(state.q_lower - q, 0.0)
+        return lb, ub
+
+    def rows(self, state: RobotModel, layout: Layout, dt: float, t: float) -> Rows:
+        """Inequality rows ``(na, n)``: ``lb <= qdd_a <= ub``."""
+        lb, ub = self.bounds(state, dt)
+        C = np.zeros((state.na, layout.n))
+        C[:, state.actuated] = np.eye(state.na)
+        return Rows(C=C, lower=lb, upper=ub)
+
+    def error(self) -> np.ndarray:
+        """Excursion past the position limits ``(na,)`` at the last call (0 inside)."""
+        return self._violation
