@@ -1,0 +1,172 @@
+"""A priority level over plain matrices, and its validation."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from hqp.errors import InvalidLevel
+
+
+@dataclass(frozen=True)
+class Level:
+    """One priority level: equality rows ``A x = b`` and/or inequality rows.
+
+    The level's cost is ``||A x - b||^2 + ||dist(C x, [lower, upper])||^2``.
+    Arrays are taken as given (array-likes accepted); they are converted and
+    checked by :func:`hqp.solver.solve`, which knows the level's index and
+    names it in its error messages.
+
+    Attributes:
+        A: Equality matrix ``(m_eq, n)`` or ``None``.
+        b: Equality target ``(m_eq,)``; ``None`` means zeros.
+        C: Inequality matrix ``(m_in, n)`` or ``None``.
+        lower: Lower bounds ``(m_in,)`` (``-inf`` entries allowed); ``None`` means ``-inf``.
+        upper: Upper bounds ``(m_in,)`` (``+inf`` entries allowed); ``None`` means ``+inf``.
+        name: Label used in reports and error messages.
+
+    """
+
+    A: Any = None
+    b: Any = None
+    C: Any = None
+    lower: Any = None
+    upper: Any = None
+    name: str = ""
+
+
+@dataclass(frozen=True)
+class CheckedLevel:
+    """A validated level: float arrays of consistent shapes (internal).
+
+    Attributes:
+        A: ``(m_eq, n)``; ``b``: ``(m_eq,)``; ``C``: ``(m_in, n)``;
+        ``lower``/``upper``: ``(m_in,)`` with ``±inf`` for absent bounds.
+
+    """
+
+    A: np.ndarray
+    b: np.ndarray
+    C: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
+    name: str
+
+    @property
+    def m_eq(self) -> int:
+        """Number of equality rows."""
+        return self.A.shape[0]
+
+    @property
+    def m_in(self) -> int:
+        """Number of inequality rows."""
+        return self.C.shape[0]
+
+
+def _where(k: int, name: str, field: str) -> str:
+    label = f"level {k}" + (f" ({name!r})" if name else "")
+    return f"{label}, field {field}"
+
+
+def _matrix(value: Any, k: int, name: str, field: str) -> np.ndarray:
+    where = _where(k, name, field)
+    try:
+        arr = np.array(value, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise InvalidLevel(f"{where}: not a numeric array ({exc})") from None
+    if arr.ndim == 1:
+        arr = arr[None, :]  # one row given as a vector
+    if arr.ndim != 2:
+        raise InvalidLevel(f"{where}: expected a 2-D matrix, got shape {arr.shape}")
+    if np.isnan(arr).any():
+        raise InvalidLevel(f"{where}: contains NaN")
+    if np.isinf(arr).any():
+        raise InvalidLevel(f"{where}: contains inf")
+    return arr
+
+
+def _vector(value: Any, m: int, k: int, name: str, field: str, *, fill: float,
+            allow_inf: bool) -> np.ndarray:
+    where = _where(k, name, field)
+    if value is None:
+        return np.full(m, fill)
+    try:
+        arr = np.array(value, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise InvalidLevel(f"{where}: not a numeric array ({exc})") from None
+    if arr.ndim == 0 and m == 1:
+        arr = arr.reshape(1)
+    if arr.shape != (m,):
+        raise InvalidLevel(f"{where}: expected shape ({m},), got {arr.shape}")
+    if np.isnan(arr).any():
+        raise InvalidLevel(f"{where}: contains NaN")
+    if not allow_inf and np.isinf(arr).any():
+        raise InvalidLevel(f"{where}: contains inf")
+    return arr
+
+
+def check_level(level: Any, k: int, n: int | None) -> CheckedLevel:
+    """Convert and validate one level.
+
+    Args:
+        level: A :class:`Level` (or any object with its attributes).
+        k: Index of the level (0 = highest priority), for messages.
+        n: Number of variables when known (from an earlier level), else ``None``.
+
+    Returns:
+        The validated level.
+
+    Raises:
+        InvalidLevel: Not a level, wrong shapes, NaN or inf in ``A``, ``b`` or ``C``,
+            NaN in a bound, ``lower > upper``, or a vector without its matrix.
+
+    """
+    if not isinstance(level, Level):
+        raise InvalidLevel(f"level {k}: expected hqp.solver.Level, got {type(level).__name__}")
+    name = str(level.name)
+    widths = []
+    if level.A is None:
+        if level.b is not None:
+            raise InvalidLevel(f"{_where(k, name, 'b')}: given without A")
+        A = None
+    else:
+        A = _matrix(level.A, k, name, "A")
+        widths.append(("A", A.shape[1]))
+    if level.C is None:
+        for field in ("lower", "upper"):
+            if getattr(level, field) is not None:
+                raise InvalidLevel(f"{_where(k, name, field)}: given without C")
+        C = None
+    else:
+        C = _matrix(level.C, k, name, "C")
+        widths.append(("C", C.shape[1]))
+    for field, width in widths:
+        if n is not None and width != n:
+            raise InvalidLevel(
+                f"{_where(k, name, field)}: has {width} columns, expected n = {n} "
+                "(the number of variables of the other levels)"
+            )
+        n = width
+    if n is None:
+        n = 0  # empty level; resized by the caller once n is known
+    if A is None:
+        A = np.zeros((0, n))
+    if C is None:
+        C = np.zeros((0, n))
+    b = _vector(level.b, A.shape[0], k, name, "b", fill=0.0, allow_inf=False)
+    lower = _vector(level.lower, C.shape[0], k, name, "lower", fill=-np.inf, allow_inf=True)
+    upper = _vector(level.upper, C.shape[0], k, name, "upper", fill=np.inf, allow_inf=True)
+    if np.any(lower == np.inf):
+        raise InvalidLevel(f"{_where(k, name, 'lower')}: contains +inf")
+    if np.any(upper == -np.inf):
+        raise InvalidLevel(f"{_where(k, name, 'upper')}: contains -inf")
+    bad = np.flatnonzero(lower > upper)
+    if bad.size:
+        i = int(bad[0])
+        raise InvalidLevel(
+            f"{_where(k, name, 'lower/upper')}: lower > upper at row {i} "
+            f"({lower[i]:g} > {upper[i]:g}); {bad.size} such row(s)"
+        )
+    return CheckedLevel(A, b, C, lower, upper, name)
