@@ -48,10 +48,21 @@ range only (eq. 22-23)::
     F_k = U_r Sigma_r^-1 U_r^T (a_k - J_k qdd_<k).                            (eq. 23)
 
 An eigenvalue counts as zero when it is below ``eig_tol`` times the largest eigenvalue of the
-task's own (unprojected) ``J_k M^-1 J_k^T`` (default ``eig_tol = 1e-9``; eigenvalues of
-``Lambda^-1`` scale as squared singular values, so this is a relative singular-value threshold
-of about 3e-5). The eigenvalues are the law's feasibility measure (seed 003, sec. 4.3): they
-are reported per level (:class:`LawLevel`) and, for each task, as ``TaskStatus.sigma_min``.
+task's own (unprojected) ``J_k M^-1 J_k^T`` (default ``eig_tol = 1e-12``; eigenvalues of
+``Lambda^-1`` scale as squared singular values, so this is a relative threshold of 1e-6 on the
+singular values of the inertia-whitened Jacobian). The eigenvalues are the law's feasibility
+measure (seed 003, sec. 4.3): they are reported per level (:class:`LawLevel`) and, for each
+task, as ``TaskStatus.sigma_min``.
+
+*Implementation.* ``method="literal"`` runs eq. 15-21 as written. The default,
+``method="whitened"``, computes the same quantities in inertia-whitened coordinates: with
+``M = R^T R`` and ``y = R^-T tau``, ``Jbar_k|p J_k|p`` becomes an orthogonal projector, so eq. 19
+is carried as an orthonormal basis ``Z_k`` of what the levels above leave free
+(``N_prec(k) = R^-1 Z_k Z_k^T R``), ``Lambda_k|prec(k)^-1 = (J_k R^-1 Z_k)(J_k R^-1 Z_k)^T``
+(eq. 16) and its eigen-decomposition (eq. 22) is the SVD of ``J_k R^-1 Z_k``: the squared
+singular values are the eigenvalues, the left singular vectors are ``U_r``, ``U_n``. The torques
+are identical; the rounding error grows with ``cond(Lambda^-1)^(1/2)`` instead of
+``cond(Lambda^-1)``, which matters on robots whose wrists are light (G1: ``cond(M) ~ 5e3``).
 
 Constraint torques come first (eq. 10-12): the joint-limit constraint of the seed's
 experiment (eq. 25, the joints that entered their activation zone are driven to a safety
@@ -153,7 +164,7 @@ from hqp.errors import InvalidInput, check_array
 
 logger = logging.getLogger(__name__)
 
-EIG_TOL = 1e-9
+EIG_TOL = 1e-12
 """Default relative threshold on the eigenvalues of ``Lambda^-1`` (eq. 22): an eigenvalue is
 zero when below ``EIG_TOL`` times the largest eigenvalue of the task's unprojected
 ``J* Phi J*^T``."""
@@ -217,8 +228,14 @@ class LawSolution:
         phi_pinv: ``Phi^+`` ``(na, na)``.
         torque_to_qdd: ``B = M^-1 N_s^T S^T`` ``(nv, na)``: ``qdd = B tau + qdd0``.
         qdd0: Support-consistent acceleration without torques ``(nv,)``.
-        null_spaces: ``N*_prec(k)`` ``(na, na)`` for each level ``k`` and one more after the
-            last level (eq. 19 in torque space).
+        whiten: ``W`` ``(nv, r)`` with ``Lambda_k|prec(k)^-1 = (J_k W Z_k)(J_k W Z_k)^T``
+            (``r = rank Phi``; ``W = R^-1`` with ``M = R^T R`` on a fixed base).
+        bases: ``Z_k`` ``(r, d_k)`` orthonormal bases of the whitened null space above each
+            level ``k`` and one more after the last level (``N_prec(k)`` of eq. 19 becomes the
+            orthogonal projector ``Z_k Z_k^T`` in whitened coordinates).
+        null_spaces: ``N*_prec(k)`` ``(na, na)`` of eq. 19 for each level and one more after
+            the last (``method="literal"`` only; empty otherwise).
+        method: ``"whitened"`` or ``"literal"``.
         timings: Wall-clock seconds (``"law"``).
 
     """
@@ -232,7 +249,10 @@ class LawSolution:
     phi_pinv: np.ndarray
     torque_to_qdd: np.ndarray
     qdd0: np.ndarray
-    null_spaces: tuple[np.ndarray, ...]
+    whiten: np.ndarray
+    bases: tuple[np.ndarray, ...]
+    null_spaces: tuple[np.ndarray, ...] = ()
+    method: str = "whitened"
     timings: dict[str, float] = field(default_factory=dict)
 
     def task_jacobian(self, J: np.ndarray) -> np.ndarray:
@@ -245,8 +265,11 @@ class LawSolution:
         ``J*_|prec Phi J*_|prec^T`` with ``J*_|prec = J* N*_prec(level)`` (eq. 15-16); its
         eigenvalues are the feasibility measure of a single task of a level.
         """
-        Jp = self.task_jacobian(J) @ self.null_spaces[level]
-        return Jp @ self.phi @ Jp.T
+        if self.method == "literal":
+            Jp = self.task_jacobian(J) @ self.null_spaces[level]
+            return Jp @ self.phi @ Jp.T
+        Jh = J @ self.whiten @ self.bases[level]
+        return Jh @ Jh.T
 
 
 def _sym_pinv(A: np.ndarray, rel_tol: float, ref: float | None = None) -> tuple[
@@ -285,6 +308,7 @@ def prioritized_torques(
     names: Sequence[str] | None = None,
     eig_tol: float = EIG_TOL,
     internal_forces: str = "none",
+    method: str = "whitened",
 ) -> LawSolution:
     """Compute the prioritised torque law on plain matrices (seed 003 eq. 11-23, Sentis 2010).
 
@@ -300,6 +324,10 @@ def prioritized_torques(
         eig_tol: Relative eigenvalue threshold of eq. 22 (see :data:`EIG_TOL`).
         internal_forces: ``"none"`` (the plain law, no torque in ``null(Phi)``) or
             ``"min-norm"`` (add the internal-force torque that minimises ``||f||``).
+        method: ``"whitened"`` (default: eq. 11-23 in inertia-whitened coordinates, see the
+            module docstring; singular values instead of squared ones, so about twice the
+            digits) or ``"literal"`` (eq. 15-21 as written, the recursion of eq. 19 on
+            ``(na, na)`` projectors).
 
     Returns:
         The torques, accelerations, support forces and a per-level report.
@@ -324,6 +352,10 @@ def prioritized_torques(
             f"prioritized_torques: internal_forces must be 'none' or 'min-norm', "
             f"got {internal_forces!r}"
         )
+    if method not in ("whitened", "literal"):
+        raise InvalidInput(
+            f"prioritized_torques: method must be 'whitened' or 'literal', got {method!r}"
+        )
     checked: list[tuple[np.ndarray, np.ndarray]] = []
     for k, (J, a) in enumerate(levels):
         J = check_array(J, (None, nv), f"prioritized_torques: level {k} J")
@@ -335,11 +367,12 @@ def prioritized_torques(
         raise InvalidInput("prioritized_torques: names and levels differ in length")
 
     try:
-        chol = sla.cho_factor(M)
+        R = sla.cholesky(M, lower=False)  # M = R^T R
     except np.linalg.LinAlgError:
         raise InvalidInput("prioritized_torques: M is not positive definite") from None
-    Minv = sla.cho_solve(chol, np.eye(nv))
-    Minv = 0.5 * (Minv + Minv.T)
+    Rinv = sla.solve_triangular(R, np.eye(nv), lower=False)
+    Minv = Rinv @ Rinv.T
+    plain = support is None and na == nv and np.array_equal(S, np.eye(nv))
 
     # Support-consistent dynamics (Sentis et al. 2010).
     if support is not None:
@@ -361,34 +394,17 @@ def prioritized_torques(
         qdd0 = -Minv @ h
     Phi = S @ B
     Phi = 0.5 * (Phi + Phi.T)
-    if support is None and na == nv:
-        Phi_pinv = M.copy() if np.allclose(S, np.eye(nv)) else _sym_pinv(Phi, PHI_TOL)[0]
-    else:
-        Phi_pinv = _sym_pinv(Phi, PHI_TOL)[0]
+    Phi_pinv = M.copy() if plain else _sym_pinv(Phi, PHI_TOL)[0]
 
-    tau = np.zeros(na)
-    N = np.eye(na)
-    null_spaces = [N.copy()]
-    records = []
-    qdd_prev = qdd0.copy()
-    for (J, a), name in zip(checked, names):
-        m = J.shape[0]
-        if m == 0:
-            records.append((name, np.zeros(0), 0, 0.0, np.zeros(0)))
-            null_spaces.append(N.copy())
-            continue
-        G = J @ B  # task acceleration per unit torque, = J* Phi
-        Jstar = G @ Phi_pinv  # (m, na), J_k (S N_s)bar
-        Jp = Jstar @ N  # eq. 15
-        ref = float(np.linalg.eigvalsh(Jstar @ Phi @ Jstar.T)[-1])
-        Lam, eig, rank, thr = _sym_pinv(Jp @ Phi @ Jp.T, eig_tol, ref)  # eq. 16, 22
-        F = Lam @ (a - J @ qdd_prev)  # eq. 21 / 23
-        tau_k = Jp.T @ F  # eq. 20
-        tau += tau_k
-        qdd_prev = qdd_prev + B @ tau_k
-        N = N - (Phi @ Jp.T @ Lam) @ Jp  # eq. 19, recursively
-        null_spaces.append(N.copy())
-        records.append((name, eig, rank, thr, F))
+    if method == "literal":
+        tau, records, null_spaces = _literal(checked, names, B, Phi, Phi_pinv, qdd0, eig_tol)
+        Wh, Tm = _whitening(M, S, B, Phi, chol_upper=None)
+        bases: list[np.ndarray] = []
+    else:
+        Wh, Tm = _whitening(M, S, B, Phi, chol_upper=R if plain else None)
+        y, records, bases = _whitened(checked, names, Wh, qdd0, eig_tol)
+        tau = Tm @ y
+        null_spaces = []
 
     # Internal forces: torques in null(Phi) change f, not qdd.
     tau_int = np.zeros(na)
@@ -403,7 +419,7 @@ def prioritized_torques(
             tau_int = Z @ y
             tau = tau + tau_int
 
-    qdd = qdd_prev
+    qdd = qdd0 + B @ tau
     if Js.shape[0]:
         f = Lambda_s @ (bs - Js @ Minv @ (S.T @ tau - h))
     else:
@@ -422,9 +438,116 @@ def prioritized_torques(
         phi_pinv=Phi_pinv,
         torque_to_qdd=B,
         qdd0=qdd0,
+        whiten=Wh,
+        bases=tuple(bases),
         null_spaces=tuple(null_spaces),
+        method=method,
         timings={"law": time.perf_counter() - t_start},
     )
+
+
+def _whitening(
+    M: np.ndarray, S: np.ndarray, B: np.ndarray, Phi: np.ndarray, chol_upper: np.ndarray | None
+) -> tuple[np.ndarray, np.ndarray]:
+    """Factor ``Phi = L L^T`` (``L`` of full column rank ``r``) for the whitened law.
+
+    Returns:
+        ``(W, T)`` with ``W = B Phi^+ L`` ``(nv, r)`` (so ``J W = J* L`` and ``qdd = qdd0 + W y``)
+        and ``T = (L^T)^+`` ``(na, r)`` (so ``tau = T y``). On a fixed base ``L = R^-1``:
+        ``W = R^-1``, ``T = R^T``.
+
+    """
+    if chol_upper is not None:
+        R = chol_upper
+        return sla.solve_triangular(R, np.eye(R.shape[0]), lower=False), R.T.copy()
+    w, U = np.linalg.eigh(Phi)
+    keep = w > PHI_TOL * max(float(w[-1]), 0.0)
+    Ur, wr = U[:, keep], w[keep]
+    T = Ur / np.sqrt(wr)
+    return B @ T, T
+
+
+def _whitened(
+    levels: list[tuple[np.ndarray, np.ndarray]],
+    names: Sequence[str],
+    W: np.ndarray,
+    qdd0: np.ndarray,
+    eig_tol: float,
+) -> tuple[np.ndarray, list[tuple], list[np.ndarray]]:
+    """Eq. 14-23 in whitened coordinates ``y = L^T tau``.
+
+    With ``J^ = J* L``: ``Lambda_k|prec(k)^-1 = J^_k Z_k Z_k^T J^_k^T`` (eq. 16), where
+    ``Z_k Z_k^T = L^T N*_prec(k)^T L^+T`` is the (orthogonal) image of eq. 19; with the SVD
+    ``J^_k Z_k = U diag(s) V^T``, the eigenvalues of eq. 22 are ``s^2`` and eq. 20-23 give
+    ``L^T tau_k = J^_k|p^T F_k = Z_k V_r diag(1/s_r) U_r^T (a_k - J_k qdd_<k)``.
+    """
+    r = W.shape[1]
+    y = np.zeros(r)
+    Z = np.eye(r)
+    bases = [Z]
+    records = []
+    for (J, a), name in zip(levels, names):
+        m = J.shape[0]
+        if m == 0:
+            records.append((name, np.zeros(0), 0, 0.0, np.zeros(0)))
+            bases.append(Z)
+            continue
+        Jh = J @ W
+        ref = float(np.linalg.norm(Jh, 2)) ** 2  # largest eigenvalue of J* Phi J*^T
+        thr = max(eig_tol * ref, np.finfo(float).tiny)
+        resid = a - J @ qdd0 - Jh @ y  # a_k - J_k qdd_<k
+        if Z.shape[1] == 0:
+            records.append((name, np.zeros(m), 0, thr, np.zeros(m)))
+            bases.append(Z)
+            continue
+        U, sv, Vt = np.linalg.svd(Jh @ Z, full_matrices=True)
+        eig = np.zeros(m)
+        eig[: sv.size] = sv**2  # eq. 22: eigenvalues of Lambda^-1
+        rank = int(np.count_nonzero(eig > thr))
+        Ur, sr = U[:, :rank], sv[:rank]
+        coef = (Ur.T @ resid) / sr
+        F = Ur @ (coef / sr)  # eq. 23: U_r Sigma_r^-1 U_r^T (a_k - J_k qdd_<k)
+        y = y + Z @ (Vt[:rank].T @ coef)  # L^T tau_k = J^_k|p^T F_k (eq. 20)
+        Z = Z @ Vt[rank:].T  # eq. 19: what the level leaves free
+        bases.append(Z)
+        records.append((name, eig, rank, thr, F))
+    return y, records, bases
+
+
+def _literal(
+    levels: list[tuple[np.ndarray, np.ndarray]],
+    names: Sequence[str],
+    B: np.ndarray,
+    Phi: np.ndarray,
+    Phi_pinv: np.ndarray,
+    qdd0: np.ndarray,
+    eig_tol: float,
+) -> tuple[np.ndarray, list[tuple], list[np.ndarray]]:
+    """Eq. 15-23 as written, in torque space (``Phi = M^-1``, ``J* = J`` on a fixed base)."""
+    na = Phi.shape[0]
+    tau = np.zeros(na)
+    N = np.eye(na)
+    null_spaces = [N.copy()]
+    records = []
+    qdd_prev = qdd0.copy()
+    for (J, a), name in zip(levels, names):
+        if J.shape[0] == 0:
+            records.append((name, np.zeros(0), 0, 0.0, np.zeros(0)))
+            null_spaces.append(N.copy())
+            continue
+        G = J @ B  # task acceleration per unit torque, = J* Phi
+        Jstar = G @ Phi_pinv  # (m, na), J_k (S N_s)bar
+        Jp = Jstar @ N  # eq. 15
+        ref = float(np.linalg.eigvalsh(Jstar @ Phi @ Jstar.T)[-1])
+        Lam, eig, rank, thr = _sym_pinv(Jp @ Phi @ Jp.T, eig_tol, ref)  # eq. 16, 22
+        F = Lam @ (a - J @ qdd_prev)  # eq. 21 / 23
+        tau_k = Jp.T @ F  # eq. 20
+        tau += tau_k
+        qdd_prev = qdd_prev + B @ tau_k
+        N = N - (Phi @ Jp.T @ Lam) @ Jp  # eq. 19, recursively
+        null_spaces.append(N.copy())
+        records.append((name, eig, rank, thr, F))
+    return tau, records, null_spaces
 
 
 def floating_base_metric(
