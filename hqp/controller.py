@@ -27,7 +27,8 @@ from __future__ import annotations
 import abc
 import enum
 import logging
-from collections.abc import Mapping
+import time
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
@@ -35,8 +36,9 @@ import numpy as np
 
 if TYPE_CHECKING:
     from hqp.model import RobotModel, RobotState
-    from hqp.stack import Stack
-    from hqp.tasks.base import Category, Task
+    from hqp.solver import Solution
+    from hqp.stack import BuiltStack, Stack, TaskSpan
+    from hqp.tasks.base import Category, Rows, Task
 
 logger = logging.getLogger(__name__)
 
@@ -257,3 +259,394 @@ class Controller(abc.ABC):
         if t is not None:
             return float(t)
         return float(getattr(self, "last_t", 0.0))
+
+
+# ------------------------------------------------------------------------------------------------
+# The HQP whole-body controller
+# ------------------------------------------------------------------------------------------------
+
+
+def _violation(C: np.ndarray, lower: np.ndarray | None, upper: np.ndarray | None,
+               x: np.ndarray) -> np.ndarray:
+    """Signed distance of ``C x`` outside ``[lower, upper]`` (0 inside)."""
+    cx = C @ x
+    out = np.zeros_like(cx)
+    if upper is not None:
+        out = np.where(cx > upper, cx - upper, out)
+    if lower is not None:
+        out = np.where(cx < lower, cx - lower, out)
+    return out
+
+
+def _null_basis(M: np.ndarray, rank_tol: float) -> np.ndarray:
+    """Orthonormal basis ``(r, r - rank)`` of the null space of ``M`` ``(m, r)``."""
+    r = M.shape[1]
+    if M.shape[0] == 0 or r == 0:
+        return np.eye(r)
+    _, s, Vt = np.linalg.svd(M, full_matrices=True)
+    if s.size == 0 or s[0] == 0.0:
+        return np.eye(r)
+    rank = int(np.sum(s > rank_tol * s[0]))
+    return Vt[rank:].T
+
+
+class WholeBodyController(Controller):
+    """Whole-body torque controller over a strict hierarchy of QPs (the seed's servo).
+
+    Args:
+        robot_model: The controller's robot model (pinocchio).
+        contacts: Contacts to declare in the stack (``hqp.tasks.contact.Contact`` tasks, their
+            physics rows at the PHYSICS level and their limits at CONTACT_LIMITS); contacts
+            already declared in ``stack`` need not be repeated.
+        stack: The levels of tasks (default: an empty :class:`~hqp.stack.Stack` with the
+            default levels).
+        dt: Control period [s].
+        backend: QP backend of the solver (``"proxsuite"``, ``"osqp"``, ``"daqp"``,
+            ``"quadprog"``).
+        algorithm: Hierarchical algorithm (``"basis"`` or ``"cascade"``).
+        final_metric: Metric ``(n, n)`` of the final tie-break (``None``: identity, i.e. the
+            minimum-norm optimum).
+        final_target: Target ``(n,)`` of the final tie-break (``None``: zero).
+        tolerance: A task whose unweighted residual norm exceeds this is in conflict.
+        singular_tolerance: A satisfied task whose projected smallest singular value is below
+            this is reported singular.
+        diagnostics: ``"full"``: per-task projected singular values and the level each
+            conflicting task yields to (a few small SVDs per step); ``"residuals"``: per-task
+            residuals only, the level's ``sigma_min`` from the solver, no ``yields_to``.
+        damping: Joint damping of the safe command [N m s/rad].
+
+    Raises:
+        InvalidInput: Bad period, tolerance or diagnostics mode; a contact frame not in the
+            model.
+        UnknownBackend: Unknown backend.
+
+    """
+
+    def __init__(
+        self,
+        robot_model: RobotModel,
+        contacts: Sequence[Task] = (),
+        stack: Stack | None = None,
+        dt: float = 0.001,
+        backend: str = "proxsuite",
+        algorithm: str = "basis",
+        *,
+        final_metric: np.ndarray | None = None,
+        final_target: np.ndarray | None = None,
+        tolerance: float = 1e-5,
+        singular_tolerance: float = 1e-4,
+        diagnostics: str = "full",
+        damping: float = 2.0,
+    ) -> None:
+        from hqp.errors import InvalidInput
+        from hqp.layout import Layout
+        from hqp.solver import HierarchicalSolver
+        from hqp.stack import Stack
+
+        if not np.isfinite(dt) or dt <= 0.0:
+            raise InvalidInput(f"WholeBodyController: dt must be positive, got {dt}")
+        if diagnostics not in ("full", "residuals"):
+            raise InvalidInput(
+                "WholeBodyController: diagnostics must be 'full' or 'residuals', "
+                f"got {diagnostics!r}"
+            )
+        for label, value in (("tolerance", tolerance), ("singular_tolerance", singular_tolerance),
+                             ("damping", damping)):
+            if not np.isfinite(value) or value < 0.0:
+                raise InvalidInput(f"WholeBodyController: {label} must be >= 0, got {value}")
+        self.model = robot_model
+        self.stack = Stack() if stack is None else stack
+        for contact in contacts:
+            if contact.name not in self.stack.contacts:
+                self.stack.add_contact(contact)
+        for name, frame, _ in self.stack.layout_contacts():
+            robot_model.frame_id(frame, f"WholeBodyController: contact {name!r}")
+        self.layout = Layout.build(robot_model.nv, self.stack.layout_contacts())
+        self.dt = float(dt)
+        self.backend = backend
+        self.algorithm = algorithm
+        self.solver = HierarchicalSolver(backend, algorithm)
+        self.final_metric = final_metric
+        self.final_target = final_target
+        self.tolerance = float(tolerance)
+        self.singular_tolerance = float(singular_tolerance)
+        self.diagnostics = diagnostics
+        self.damping = float(damping)
+        self.last_t = 0.0
+        self.last_x: np.ndarray | None = None
+        self.last_tau: np.ndarray | None = None
+        self.last_built: BuiltStack | None = None
+        self.last_solution: Solution | None = None
+        self._blend_start: float | None = None
+        self._blend_delta = np.zeros(robot_model.na)
+        self._blend_notes: tuple[str, ...] = ()
+
+    # -- one step ---------------------------------------------------------------------------
+
+    def step(self, state: RobotState, t: float) -> Command:
+        """One control step: update, rows, solve, torques, feasibility report.
+
+        Args:
+            state: Measured state (``q`` ``(nq,)``, ``v`` ``(nv,)`` in pinocchio's convention).
+            t: Control time [s].
+
+        Returns:
+            The command; ``safe_mode`` when the solve failed or returned non-finite values.
+
+        Raises:
+            InvalidInput: The state has the wrong shape or holds NaN or inf.
+
+        """
+        from hqp.errors import HQPError
+
+        clock = time.perf_counter
+        t0 = clock()
+        self.model.update(state.q, state.v)
+        t1 = clock()
+        x_prev = self.last_x
+        declared = self.stack.layout_contacts()
+        if [(c.name, c.frame, c.kind) for c in self.layout.contacts] != declared:
+            self._relayout()
+            x_prev = None
+        built = self.stack.build(self.model, self.layout, self.dt, t, x_prev)
+        t2 = clock()
+        notes: list[str] = []
+        solution = None
+        try:
+            solution = self.solver.solve(built.levels, final_metric=self.final_metric,
+                                         final_target=self.final_target)
+        except HQPError as exc:
+            notes.append(f"solve failed: {exc}")
+            logger.warning("t=%.4f: solve failed (%s); safe command sent", t, exc)
+        t3 = clock()
+        x = None if solution is None else solution.x
+        if x is not None and not np.all(np.isfinite(x)):
+            notes.append("solver returned non-finite values")
+            logger.warning("t=%.4f: non-finite solution; safe command sent", t)
+            x = None
+        safe = x is None
+        if x is not None:
+            tau = self.torques(x)
+            if not np.all(np.isfinite(tau)):
+                notes.append("non-finite torques")
+                safe = True
+        if safe:
+            tau, qdd, wrenches = self.safe_command()
+            notes.append("safe mode: gravity and contact compensation with joint damping")
+            self.last_x = None
+        else:
+            assert x is not None
+            qdd = x[: self.layout.nv].copy()
+            wrenches = {c.name: x[c.slice].copy() for c in self.layout.contacts}
+            self.last_x = x.copy()
+        tau, suspended = self._blend(tau, t, notes)
+        if np.any(np.abs(tau) > self.model.tau_max + 1e-9):
+            tau = np.clip(tau, -self.model.tau_max, self.model.tau_max)
+            notes.append("command clipped to the model's torque limits")
+        t4 = clock()
+        statuses = () if safe or solution is None else self._statuses(built, solution)
+        report = FeasibilityReport(
+            tasks=statuses,
+            safe_mode=safe,
+            strictness_suspended=suspended,
+            notes=tuple(notes),
+            level_costs=() if solution is None else tuple(lv.cost for lv in solution.levels),
+        )
+        t5 = clock()
+        self.last_t = float(t)
+        self.last_tau = tau
+        self.last_built = built
+        self.last_solution = solution
+        timings = {"update": t1 - t0, "rows": t2 - t1, "solve": t3 - t2, "torques": t4 - t3,
+                   "report": t5 - t4, "total": t5 - t0}
+        return Command(tau=tau, qdd=qdd, wrenches=wrenches, report=report, safe_mode=safe,
+                       timings=timings, t=float(t))
+
+    def _relayout(self) -> None:
+        from hqp.layout import Layout
+
+        self.layout = Layout.build(self.model.nv, self.stack.layout_contacts())
+        self.last_x = None
+        if hasattr(self.solver, "reset"):
+            self.solver.reset()
+
+    # -- torques ----------------------------------------------------------------------------
+
+    def torques(self, x: np.ndarray) -> np.ndarray:
+        """Actuated torques of a solution: ``tau = S (M qdd + h - sum_c J_c^T f_c)`` ``(na,)``.
+
+        The model must be updated at the state the solution was computed for.
+        """
+        m = self.model
+        act = m.actuated
+        tau = m.M[act] @ x[: self.layout.nv] + m.h[act]
+        for slot in self.layout.contacts:
+            J = m.frame_jacobian(slot.frame)[: slot.size]
+            tau -= J[:, act].T @ x[slot.slice]
+        return tau
+
+    def safe_command(self) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
+        """Compute the safe command: gravity and contact compensation with joint damping.
+
+        The contact wrenches ``f`` are the least-norm solution of the floating-base rows of the
+        static equilibrium ``g_u = sum_c J_{c,u}^T f_c`` over the active contacts; then
+        ``tau = g_a - sum_c J_{c,a}^T f_c - D v_a`` with ``D = damping * I``, clipped to the
+        torque limits.
+
+        Returns:
+            ``(tau (na,), qdd (nv,) zeros, wrenches by contact name)``.
+
+        """
+        m = self.model
+        act = m.actuated
+        g = m.gravity
+        active = [s for s in self.layout.contacts if s.name in self.stack.active_contacts]
+        wrenches = {s.name: np.zeros(s.size) for s in self.layout.contacts}
+        tau = g[act] - self.damping * m.v[act]
+        if active and m.nv_base:
+            Js = [m.frame_jacobian(s.frame)[: s.size] for s in active]
+            JT = np.hstack([J.T for J in Js])  # (nv, sum sizes)
+            f, *_ = np.linalg.lstsq(JT[: m.nv_base], g[: m.nv_base], rcond=None)
+            tau = tau - JT[act] @ f
+            start = 0
+            for s in active:
+                wrenches[s.name] = f[start:start + s.size]
+                start += s.size
+        tau = np.clip(np.nan_to_num(tau), -m.tau_max, m.tau_max)
+        return tau, np.zeros(m.nv), wrenches
+
+    def _blend(self, tau: np.ndarray, t: float, notes: list[str]) -> tuple[np.ndarray, bool]:
+        """Interpolate torques after a change that cannot be ramped (stack blend events)."""
+        from hqp.stack import min_jerk
+
+        events = self.stack.pop_events()
+        if events and self.last_tau is not None and self.stack.blend_time > 0.0:
+            self._blend_start = float(t)
+            self._blend_delta = self.last_tau - tau
+            self._blend_notes = tuple(e.note for e in events)
+        if self._blend_start is None:
+            return tau, False
+        s = min_jerk((t - self._blend_start) / self.stack.blend_time)
+        if s >= 1.0:
+            self._blend_start = None
+            return tau, False
+        notes.append(
+            f"strictness suspended: torques interpolated over {self.stack.blend_time:g} s after "
+            + "; ".join(self._blend_notes)
+        )
+        return tau + (1.0 - s) * self._blend_delta, True
+
+    # -- report -----------------------------------------------------------------------------
+
+    def _statuses(self, built: BuiltStack, solution: Solution) -> tuple[TaskStatus, ...]:
+        """Per-task feasibility from the unweighted rows of each task at the solution.
+
+        ``Z_k`` is an orthonormal basis of the directions left free by levels ``0..k``: the
+        null space of their equality rows and of their active (or violated) inequality rows,
+        i.e. the face of the optimal set on which the solution lies. A task's ``sigma_min`` is
+        the ``m``-th singular value of its ``m`` rows (equalities and active inequalities)
+        times the basis of the levels above (0 when ``m`` exceeds the free dimension); only
+        tasks with equality rows can be reported singular.
+        """
+        x = solution.x
+        full = self.diagnostics == "full"
+        n = built.n
+        rank_tol = 1e-9
+        Z = np.eye(n)
+        bases: list[np.ndarray] = []  # Z after each built level
+        out: list[TaskStatus] = []
+        by_level: dict[int, list] = {}
+        for span in built.spans:
+            by_level.setdefault(span.built_level, []).append(span)
+        for k, level in enumerate(built.levels):
+            rep = solution.levels[k]
+            active_rows = set(int(i) for i in rep.active)
+            for span in by_level.get(k, []):
+                rows = built.rows[span.name]
+                parts = []
+                mats = []
+                if rows.A is not None:
+                    parts.append(rows.A @ x - rows.b)
+                    mats.append(rows.A)
+                if rows.C is not None:
+                    viol = _violation(rows.C, rows.lower, rows.upper, x)
+                    parts.append(viol)
+                    idx = [i - span.ineq.start for i in range(span.ineq.start, span.ineq.stop)
+                           if i in active_rows]
+                    if idx:
+                        mats.append(rows.C[idx])
+                r = np.concatenate(parts) if parts else np.zeros(0)
+                residual = float(np.linalg.norm(r))
+                if full:
+                    sigma = float("nan")
+                    if mats:
+                        P = np.vstack(mats) @ Z
+                        m_rows = P.shape[0]
+                        if m_rows > P.shape[1]:
+                            sigma = 0.0
+                        else:
+                            sv = np.linalg.svd(P, compute_uv=False)
+                            sigma = float(sv[m_rows - 1]) if sv.size >= m_rows else 0.0
+                else:
+                    sigma = float(rep.sigma_min)
+                yields_to = None
+                if residual > self.tolerance:
+                    status = Feasibility.CONFLICT
+                    if full:
+                        yields_to = self._yields_to(rows, r, bases, built, span)
+                elif rows.A is not None and np.isfinite(sigma) and sigma < self.singular_tolerance:
+                    status = Feasibility.SINGULAR
+                else:
+                    status = Feasibility.SATISFIED
+                out.append(TaskStatus(span.name, span.level, status, residual, yields_to, sigma))
+            if full and k < len(built.levels) - 1:
+                mats = []
+                if level.A is not None:
+                    mats.append(np.asarray(level.A))
+                if level.C is not None and rep.active.size:
+                    mats.append(np.asarray(level.C)[rep.active])
+                if mats:
+                    Z = Z @ _null_basis(np.vstack(mats) @ Z, rank_tol)
+                bases.append(Z)
+        return tuple(out)
+
+    def _yields_to(self, rows: Rows, r: np.ndarray, bases: list[np.ndarray],
+                   built: BuiltStack, span: TaskSpan) -> int | None:
+        """Highest level whose optimal set (affine part) leaves the task's residual above tolerance.
+
+        The residual reachable from ``x`` within ``x + Z_j y`` (``Z_j``: basis left free by
+        levels ``0..j``) is ``min_y ||r + A Z_j y||``; it grows with ``j``. The first ``j`` where
+        it exceeds the tolerance is the level the task yields to; if none above, the task is
+        traded within its own level; if even the whole space cannot meet it, the task is
+        infeasible on its own (``None``).
+        """
+        mats = []
+        target = []
+        n_eq = 0 if rows.A is None else rows.A.shape[0]
+        if rows.A is not None:
+            mats.append(rows.A)
+            target.append(r[:n_eq])
+        if rows.C is not None:
+            bad = np.flatnonzero(np.abs(r[n_eq:]) > 0.0)
+            mats.append(rows.C[bad])
+            target.append(r[n_eq:][bad])
+        A = np.vstack(mats)
+        r0 = np.concatenate(target)
+
+        scale = max(1.0, float(np.abs(A).max(initial=0.0)))
+
+        def reachable(Z: np.ndarray) -> float:
+            # min_y ||r0 + A Z y||: remove the part of r0 in the range of A Z (rank decided
+            # against the scale of A, not of A Z, which vanishes where the task is blocked).
+            if Z.shape[1] == 0:
+                return float(np.linalg.norm(r0))
+            U, sv, _ = np.linalg.svd(A @ Z, full_matrices=False)
+            U = U[:, sv > 1e-9 * scale]
+            return float(np.linalg.norm(r0 - U @ (U.T @ r0)))
+
+        if reachable(np.eye(A.shape[1])) > self.tolerance:
+            return None
+        for j in range(span.built_level):
+            if reachable(bases[j]) > self.tolerance:
+                return built.level_index[j]
+        return span.level

@@ -1,0 +1,161 @@
+import math
+
+import numpy as np
+import pytest
+from _h5_standins import (
+    ComStandIn,
+    JointAccelStandIn,
+    JointBoundStandIn,
+    PostureStandIn,
+    sample_humanoid,
+)
+
+from hqp.errors import HQPError, InvalidInput, InvalidLevel, UnknownName
+from hqp.layout import ContactType, Layout
+from hqp.stack import ContactMode, Stack, min_jerk
+from hqp.tasks.base import Category
+from hqp.tasks.contact import Contact
+from hqp.tasks.dynamics import FloatingBaseDynamics
+
+
+@pytest.fixture(scope="module")
+def humanoid():
+    m, q = sample_humanoid()
+    m.update(q, np.zeros(m.nv))
+    return m, q
+
+
+def test_min_jerk_profile():
+    assert min_jerk(-1.0) == 0.0 and min_jerk(0.0) == 0.0
+    assert min_jerk(1.0) == 1.0 and min_jerk(2.0) == 1.0
+    np.testing.assert_allclose(min_jerk(0.5), 0.5, atol=1e-15)
+
+
+def test_default_levels_follow_categories():
+    st = Stack()
+    assert st.n_levels == len(Category)
+    for c in Category:
+        assert st.level_of(c) == int(c)
+    assert st.level_of("posture") == int(Category.POSTURE)
+    with pytest.raises(InvalidLevel, match="out of range"):
+        st.level_of(7)
+    with pytest.raises(InvalidLevel, match="unknown level"):
+        st.level_of("nope")
+    custom = Stack(["physics", "shared", Category.POSTURE])
+    with pytest.raises(InvalidLevel, match="no level of category BALANCE"):
+        custom.level_of(Category.BALANCE)
+    with pytest.raises(InvalidInput):
+        Stack([])
+    with pytest.raises(InvalidInput):
+        Stack(["a", "a"])
+
+
+def test_add_remove_and_errors(humanoid):
+    st = Stack()
+    st.add(PostureStandIn("posture", humanoid[1]))
+    with pytest.raises(InvalidInput, match="already in the stack"):
+        st.add(PostureStandIn("posture", humanoid[1]))
+    with pytest.raises(InvalidInput, match="expected a Task"):
+        st.add("posture")  # type: ignore[arg-type]
+    with pytest.raises(UnknownName, match="posture"):
+        st.task("missing")
+    assert st.level_of_task("posture") == int(Category.POSTURE)
+    st.remove("posture", t=0.1)
+    assert "posture" not in st
+    events = st.pop_events()
+    assert len(events) == 1 and "removed" in events[0].note and events[0].t == 0.1
+    assert st.pop_events() == []
+
+
+def test_build_weights_spans_and_skipped_levels(humanoid):
+    m, q = humanoid
+    layout = Layout.build(m.nv)
+    st = Stack()
+    com = ComStandIn("com", m.com[:2] + 0.01)
+    posture = PostureStandIn("posture", q, weight=4.0)
+    other = JointAccelStandIn("joint", 8, 0.5, weight=0.25)
+    st.add(com)
+    st.add(posture)
+    st.add(other, Category.POSTURE)
+    st.add(JointBoundStandIn("bound", 9, -1.0, 1.0))
+    built = st.build(m, layout, 1e-3, 0.0)
+    assert built.level_index == (int(Category.JOINT_LIMITS), int(Category.BALANCE),
+                                 int(Category.POSTURE))
+    assert [lv.name for lv in built.levels] == ["joint_limits", "balance", "posture"]
+    sp = built.span("posture")
+    sj = built.span("joint")
+    assert sp.built_level == sj.built_level == 2
+    assert (sp.eq.start, sp.eq.stop, sj.eq.start, sj.eq.stop) == (0, m.na, m.na, m.na + 1)
+    level = built.levels[2]
+    rows_p = posture.rows(m, layout, 1e-3, 0.0)
+    np.testing.assert_allclose(level.A[sp.eq], 2.0 * rows_p.A, atol=0)
+    np.testing.assert_allclose(level.b[sp.eq], 2.0 * rows_p.b, atol=1e-12)
+    np.testing.assert_allclose(level.A[sj.eq][0, 8], 0.5, atol=0)
+    np.testing.assert_allclose(built.rows["posture"].b, rows_p.b, atol=1e-12)  # unweighted
+    bound = built.span("bound")
+    assert bound.ineq == slice(0, 1) and bound.eq == slice(0, 0)
+
+
+def test_task_ramp_starts_at_previous_solution(humanoid):
+    m, q = humanoid
+    layout = Layout.build(m.nv)
+    st = Stack(ramp_time=0.2)
+    task = ComStandIn("com", m.com[:2] + 0.05)
+    bound = JointBoundStandIn("bound", 9, 2.0, 3.0)
+    st.add(task, t=1.0)
+    st.add(bound, t=1.0)
+    rng = np.random.default_rng(0)
+    x_prev = rng.normal(size=layout.n)
+    x_prev[9] = 0.0  # outside [2, 3]
+    full = task.rows(m, layout, 1e-3, 1.0)
+    b0 = st.build(m, layout, 1e-3, 1.0, x_prev)
+    np.testing.assert_allclose(b0.rows["com"].A @ x_prev, b0.rows["com"].b, atol=1e-12)
+    assert b0.span("com").ramp == 0.0
+    lo, hi = b0.rows["bound"].lower[0], b0.rows["bound"].upper[0]
+    assert lo <= x_prev[9] <= hi
+    mid = st.build(m, layout, 1e-3, 1.1, x_prev)
+    np.testing.assert_allclose(
+        mid.rows["com"].b, 0.5 * full.b + 0.5 * (full.A @ x_prev), atol=1e-12
+    )
+    end = st.build(m, layout, 1e-3, 1.2, x_prev)
+    np.testing.assert_allclose(end.rows["com"].b, full.b, atol=1e-12)
+    assert end.rows["bound"].lower[0] == 2.0 and end.span("com").ramp == 1.0
+
+
+def test_contact_unloading_then_release(humanoid):
+    m, q = humanoid
+    st = Stack(unload_time=0.1)
+    st.add(FloatingBaseDynamics())
+    right = Contact("right", "right_sole")
+    left = Contact("left", "left_sole")
+    st.add_contact(right)
+    st.add_contact(left)
+    layout = Layout.build(m.nv, st.layout_contacts())
+    assert [c.name for c in layout.contacts] == ["right", "left"]
+    x = np.zeros(layout.n)
+    x[layout.contact("left").start + 2] = 300.0
+    st.deactivate_contact("left", t=0.0)
+    assert st.contact_mode("left") is ContactMode.UNLOADING
+    st.build(m, layout, 1e-3, 0.0, x)
+    assert left.max_normal_force == pytest.approx(300.0)
+    st.build(m, layout, 1e-3, 0.05, x)
+    assert left.max_normal_force == pytest.approx(150.0)
+    assert st.active_contacts == ("right", "left")
+    built = st.build(m, layout, 1e-3, 0.1, x)
+    assert st.contact_mode("left") is ContactMode.INACTIVE
+    assert math.isinf(left.max_normal_force) and not left.active  # nominal bound restored
+    rows = built.rows["left"]
+    np.testing.assert_allclose(rows.A[:, layout.contact("left").slice], np.eye(6))
+    assert [e.note for e in st.pop_events()] == ["contact 'left' released"]
+    st.activate_contact("left", t=0.2)
+    assert left.active and st.contact_mode("left") is ContactMode.ACTIVE
+    assert "made" in st.pop_events()[0].note
+    with pytest.raises(UnknownName):
+        st.deactivate_contact("hand")
+
+
+def test_layout_contact_must_be_declared(humanoid):
+    m, _ = humanoid
+    layout = Layout.build(m.nv, [("hand", "right_sole", ContactType.POINT)])
+    with pytest.raises(HQPError, match="not declared"):
+        Stack().build(m, layout, 1e-3, 0.0)
