@@ -1,0 +1,138 @@
+"""Orientation of a frame: the error ``log3(R_goal^T R)`` with the Jacobian of the log."""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING
+
+import numpy as np
+import pinocchio as pin
+
+from hqp.errors import check_array
+from hqp.tasks.base import Category
+from hqp.tasks.reference import MinimumJerkRotation, TrajectorySample, check_rotation
+from hqp.tasks.tracking import TaskKinematics, TrackingTask
+
+if TYPE_CHECKING:
+    from hqp.model import RobotModel
+
+
+def orientation_kinematics(
+    state: RobotModel, frame: str, goal: TrajectorySample
+) -> TaskKinematics:
+    """Kinematics of ``e = log3(E)``, ``E = R_g^T R`` (goal frame coordinates) [rad].
+
+    With ``omega`` the frame's and ``omega_g`` the goal's world angular
+    velocity, ``E`` moves with the local velocity ``xi = R^T (omega - omega_g)``, so
+
+        de/dt   = Jlog3(E) xi,
+        d2e/dt2 = Jlog3(E) R^T J_ang qdd
+                  + Jlog3(E) R^T (a_ang + omega x omega_g - alpha_g) + Hlog3(E, xi) xi,
+
+    with ``J_ang`` and ``a_ang`` the angular rows of the ``LOCAL_WORLD_ALIGNED``
+    Jacobian and drift, ``Jlog3`` the Jacobian of the log (not the frame's
+    angular Jacobian) and ``Hlog3(E, xi) = d Jlog3(E exp(s xi)) / ds`` at ``s = 0``.
+    """
+    Rg = goal.position
+    wg = goal.velocity
+    ag = goal.acceleration
+    R = state.frame_placement(frame).rotation
+    J_ang = state.frame_jacobian(frame)[3:]
+    w = state.frame_velocity(frame)[3:]
+    a_ang = state.frame_drift(frame)[3:]
+    E = Rg.T @ R
+    e = pin.log3(E)
+    Jlog = pin.Jlog3(E)
+    xi = R.T @ (w - wg)
+    JR = Jlog @ R.T
+    drift = JR @ (a_ang + np.cross(w, wg) - ag) + pin.Hlog3(E, xi) @ xi
+    return TaskKinematics(e, Jlog @ xi, JR @ J_ang, drift)
+
+
+class OrientationTask(TrackingTask):
+    """Orientation of a frame: ``e = log3(R_goal^T R)`` (3 rows) [rad].
+
+    The Jacobian of this error is ``Jlog3(E) R^T J_ang`` (Jacobian of the log
+    times the frame's angular Jacobian in the frame's local axes), not the
+    frame's angular Jacobian; the drift is consistent with it
+    (:func:`orientation_kinematics`). The error is in the goal's axes.
+
+    Args:
+        robot: Robot model (the frame is checked here).
+        frame: Frame name.
+        name: Task name (default: the frame's name).
+        weight: Weight within its level.
+        kp, kv, max_velocity, max_acceleration: PD reference (rad, rad/s, rad/s^2).
+
+    Goal: :meth:`set_goal` with a rotation ``(3, 3)`` (``R_world_goal``) and an
+    optional world angular velocity and acceleration ``(3,)``; or
+    :meth:`set_trajectory` (samples: rotation, world angular velocity and
+    acceleration), or :meth:`move_to` (a :class:`MinimumJerkRotation`).
+
+    Raises:
+        InvalidFrame: Unknown frame.
+        InvalidGain: Bad gains.
+
+    """
+
+    category = Category.OPERATIONAL
+
+    def __init__(
+        self,
+        robot: RobotModel,
+        frame: str,
+        *,
+        name: str | None = None,
+        weight: float = 1.0,
+        kp: float = 100.0,
+        kv: float | None = None,
+        max_velocity: float = math.inf,
+        max_acceleration: float = math.inf,
+    ) -> None:
+        super().__init__(
+            name or frame,
+            weight,
+            kp=kp,
+            kv=kv,
+            max_velocity=max_velocity,
+            max_acceleration=max_acceleration,
+        )
+        robot.frame_id(frame, self.where())
+        self.frame = frame
+
+    def _check_goal(
+        self, goal: object, velocity: object | None, acceleration: object | None
+    ) -> TrajectorySample:
+        w = self.where()
+        R = check_rotation(goal, f"{w}: goal")
+        v = np.zeros(3) if velocity is None else check_array(velocity, (3,), f"{w}: goal velocity")
+        a = (
+            np.zeros(3)
+            if acceleration is None
+            else check_array(acceleration, (3,), f"{w}: goal acceleration")
+        )
+        return TrajectorySample(R, v, a)
+
+    def set_goal(
+        self, goal: object, velocity: object | None = None, acceleration: object | None = None
+    ) -> None:
+        """Set the goal rotation ``(3, 3)`` (copied), optional world angular velocity/acceleration.
+
+        Raises:
+            InvalidInput: Not a rotation, wrong shape or NaN (names the primitive).
+
+        """
+        self._store_goal(self._check_goal(goal, velocity, acceleration))
+
+    def value(self, state: RobotModel) -> np.ndarray:
+        """Return the current rotation ``R_world_frame`` ``(3, 3)``."""
+        return state.frame_placement(self.frame).rotation.copy()
+
+    def move_to(self, state: RobotModel, goal: object, duration: float, t0: float) -> None:
+        """Reach ``goal`` along a :class:`MinimumJerkRotation` from the current rotation."""
+        R = self._check_goal(goal, None, None).position
+        self.set_trajectory(MinimumJerkRotation(self.value(state), R, duration, t0))
+
+    def kinematics(self, state: RobotModel, t: float = 0.0) -> TaskKinematics:
+        """See :func:`orientation_kinematics`."""
+        return orientation_kinematics(state, self.frame, self.goal_at(t))

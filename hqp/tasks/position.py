@@ -1,0 +1,77 @@
+"""Position of a frame's origin in the world (all or selected axes)."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from hqp.tasks.base import Category
+from hqp.tasks.tracking import VectorTrackingTask, parse_axes
+
+if TYPE_CHECKING:
+    from hqp.model import RobotModel
+
+
+class PositionTask(VectorTrackingTask):
+    """World position ``p(q)`` of a frame's origin (seed 001 ``PositionPrimitive``).
+
+    Task function ``x = S p``, Jacobian ``S J_lin`` (linear rows of the
+    ``LOCAL_WORLD_ALIGNED`` frame Jacobian), drift ``S a_lin`` (the origin's
+    classical acceleration at ``qdd = 0``). Rows: ``S J_lin qdd = xdd_ref - S a_lin``.
+
+    Args:
+        robot: Robot model (the frame is checked here).
+        frame: Frame name.
+        axes: Selected world axes (``"xz"``, indices, or ``None`` for all).
+        name: Task name (default: the frame's name).
+        weight: Weight within its level.
+        kp, kv, max_velocity, max_acceleration: PD reference (m, m/s, m/s^2).
+
+    Goal: :meth:`set_goal` with the selected coordinates ``(k,)`` [m].
+
+    Raises:
+        InvalidFrame: Unknown frame (lists the frames).
+        InvalidInput: Bad axes.
+        InvalidGain: Bad gains.
+
+    """
+
+    category = Category.OPERATIONAL
+
+    def __init__(
+        self,
+        robot: RobotModel,
+        frame: str,
+        *,
+        axes: str | Sequence[int] | None = None,
+        name: str | None = None,
+        weight: float = 1.0,
+        kp: float = 100.0,
+        kv: float | None = None,
+        max_velocity: float = math.inf,
+        max_acceleration: float = math.inf,
+    ) -> None:
+        super().__init__(
+            name or frame,
+            weight,
+            kp=kp,
+            kv=kv,
+            max_velocity=max_velocity,
+            max_acceleration=max_acceleration,
+        )
+        robot.frame_id(frame, self.where())
+        self.frame = frame
+        self.axes = parse_axes(axes, 3, self.where())
+        self.goal_size = len(self.axes)
+
+    def measure(self, state: RobotModel) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """``(S p, S pd, S J_lin, S a_lin)``."""
+        ax = self.axes
+        p = state.frame_placement(self.frame).translation
+        J = state.frame_jacobian(self.frame)
+        v = state.frame_velocity(self.frame)
+        a = state.frame_drift(self.frame)
+        return p[ax], v[ax], J[ax], a[ax]

@@ -1,0 +1,316 @@
+"""Shared machinery of the motion primitives that track a goal with the PD reference.
+
+A tracking task defines an error ``e(q, t)`` ``(m,)`` that vanishes at its
+goal (the goal may move with time), and reports, at the updated state,
+
+    e,   de/dt = J v + (goal terms),   d2e/dt2 = J qdd + drift,
+
+(:class:`TaskKinematics`; ``drift`` holds every term that does not depend on
+``qdd``, including the goal's acceleration). Its rows over
+``x = [qdd | f]`` are then
+
+    [J | 0] x = a_fb(e, de/dt) - drift
+
+with ``a_fb`` the saturated PD feedback of :class:`~hqp.tasks.reference.PDReference`
+(seed 003 eq. 27-28); for a vector task ``e = x - x_goal`` this is exactly
+``J qdd = xdd_ref - dJ v`` with ``xdd_ref = xdd_goal + a_fb``.
+"""
+
+from __future__ import annotations
+
+import abc
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from hqp.errors import InvalidInput, check_array
+from hqp.tasks.base import Rows, Task
+from hqp.tasks.reference import MinimumJerk, PDReference, Trajectory, TrajectorySample
+
+if TYPE_CHECKING:
+    from hqp.layout import Layout
+    from hqp.model import RobotModel
+
+AXIS_NAMES = {"x": 0, "y": 1, "z": 2}
+
+
+def parse_axes(axes: str | Sequence[int] | None, size: int, where: str) -> np.ndarray:
+    """Return the indices of selected axes from ``"xz"``-style strings or integers.
+
+    Args:
+        axes: ``None`` (all), a string of ``x``/``y``/``z`` (only when ``size == 3``),
+            or indices in ``[0, size)``.
+        size: Number of available axes.
+        where: Prefix of error messages.
+
+    Raises:
+        InvalidInput: Empty, repeated, unknown or out-of-range axes.
+
+    """
+    if axes is None:
+        return np.arange(size)
+    if isinstance(axes, str):
+        if size != 3 or any(c not in AXIS_NAMES for c in axes):
+            raise InvalidInput(f"{where}: axes {axes!r} must be letters of 'xyz'")
+        idx = [AXIS_NAMES[c] for c in axes]
+    else:
+        try:
+            idx = [int(i) for i in axes]
+        except (TypeError, ValueError):
+            raise InvalidInput(
+                f"{where}: axes must be a string or integers, got {axes!r}"
+            ) from None
+    if not idx or len(set(idx)) != len(idx) or min(idx) < 0 or max(idx) >= size:
+        raise InvalidInput(
+            f"{where}: axes {axes!r} must be distinct, non-empty, within [0, {size})"
+        )
+    return np.array(sorted(idx), dtype=int)
+
+
+@dataclass(frozen=True)
+class TaskKinematics:
+    """Error of a task and its derivatives at the updated state.
+
+    Attributes:
+        error: ``e`` ``(m,)`` (zero at the goal).
+        rate: ``de/dt`` ``(m,)``.
+        jacobian: ``J`` ``(m, nv)``: ``d2e/dt2 = J qdd + drift`` (and ``de/dt = J v + ...``).
+        drift: ``(m,)``, everything in ``d2e/dt2`` that does not depend on ``qdd``.
+
+    """
+
+    error: np.ndarray
+    rate: np.ndarray
+    jacobian: np.ndarray
+    drift: np.ndarray
+
+
+class TrackingTask(Task):
+    """Base of the primitives that track a goal through :class:`PDReference` rows.
+
+    Args:
+        name: Task name.
+        weight: Weight within its level.
+        kp: Stiffness [1/s^2].
+        kv: Damping [1/s] (``None``: ``2 sqrt(kp)``).
+        max_velocity: Saturation of the corrective velocity (task units/s).
+        max_acceleration: Saturation of the feedback acceleration (task units/s^2).
+
+    Raises:
+        InvalidGain: Bad gains or weight (names the primitive).
+
+    """
+
+    def __init__(
+        self,
+        name: str,
+        weight: float = 1.0,
+        *,
+        kp: float = 100.0,
+        kv: float | None = None,
+        max_velocity: float = math.inf,
+        max_acceleration: float = math.inf,
+    ) -> None:
+        super().__init__(name, weight)
+        self.reference = PDReference(kp, kv, max_velocity, max_acceleration, where=self.where())
+        self._goal: TrajectorySample | None = None
+        self._trajectory: Trajectory | None = None
+        self._last: TaskKinematics | None = None
+        self._last_reference: np.ndarray = np.zeros(0)
+
+    # -- gains ----------------------------------------------------------------------------------
+
+    def set_gains(
+        self,
+        kp: float | None = None,
+        kv: float | None = None,
+        max_velocity: float | None = None,
+        max_acceleration: float | None = None,
+    ) -> None:
+        """Change gains or saturations (``None`` keeps a value, except ``kv``).
+
+        ``kv=None`` with a new ``kp`` gives critical damping ``2 sqrt(kp)``;
+        with ``kp=None`` it keeps the current ``kv``.
+
+        Raises:
+            InvalidGain: Bad values (the task keeps its old reference).
+
+        """
+        ref = self.reference
+        new_kp = ref.kp if kp is None else kp
+        new_kv = (ref.kv if kp is None else None) if kv is None else kv
+        self.reference = PDReference(
+            new_kp,
+            new_kv,
+            ref.max_velocity if max_velocity is None else max_velocity,
+            ref.max_acceleration if max_acceleration is None else max_acceleration,
+            where=self.where(),
+        )
+
+    # -- goals ----------------------------------------------------------------------------------
+
+    def set_trajectory(self, trajectory: Trajectory) -> None:
+        """Follow a goal trajectory (sampled at the time passed to :meth:`rows`).
+
+        The samples must have the shapes :meth:`set_goal` accepts; they are
+        checked at every sample.
+
+        Raises:
+            InvalidInput: ``trajectory`` has no ``sample`` method.
+
+        """
+        if not callable(getattr(trajectory, "sample", None)):
+            raise InvalidInput(f"{self.where()}: a trajectory needs a sample(t) method")
+        self._trajectory = trajectory
+        self._goal = None
+
+    @property
+    def trajectory(self) -> Trajectory | None:
+        """The goal trajectory being followed, if any."""
+        return self._trajectory
+
+    def goal_at(self, t: float) -> TrajectorySample:
+        """Return the goal and its derivatives at time ``t`` (validated).
+
+        Raises:
+            InvalidInput: No goal set, or a trajectory sample of the wrong shape.
+
+        """
+        if self._trajectory is not None:
+            s = self._trajectory.sample(t)
+            return self._check_goal(s.position, s.velocity, s.acceleration)
+        if self._goal is None:
+            raise InvalidInput(f"{self.where()}: goal not set (call set_goal or set_trajectory)")
+        return self._goal
+
+    def _store_goal(self, sample: TrajectorySample) -> None:
+        self._goal = sample
+        self._trajectory = None
+
+    @abc.abstractmethod
+    def _check_goal(
+        self, goal: object, velocity: object | None, acceleration: object | None
+    ) -> TrajectorySample:
+        """Validate a goal and its derivatives (copies), raising :class:`InvalidInput`."""
+
+    # -- kinematics and rows --------------------------------------------------------------------
+
+    @abc.abstractmethod
+    def kinematics(self, state: RobotModel, t: float = 0.0) -> TaskKinematics:
+        """Error, its rate, Jacobian and drift at the updated state and time ``t``."""
+
+    def feedback(self, kin: TaskKinematics) -> np.ndarray:
+        """PD feedback ``a_fb(e, de/dt)`` of the reference (eq. 27-28)."""
+        return self.reference.feedback(kin.error, kin.rate)
+
+    def rows(self, state: RobotModel, layout: Layout, dt: float, t: float) -> Rows:
+        """Equality rows ``[J | 0] x = a_fb - drift`` ``(m, n)``.
+
+        Raises:
+            InvalidInput: Goal not set, or a layout that does not match the robot.
+
+        """
+        if layout.nv != state.nv:
+            raise InvalidInput(f"{self.where()}: layout nv={layout.nv}, robot nv={state.nv}")
+        kin = self.kinematics(state, t)
+        a = self.feedback(kin)
+        A = layout.zeros(kin.jacobian.shape[0])
+        A[:, : layout.nv] = kin.jacobian
+        self._last = kin
+        self._last_reference = a
+        return Rows(A=A, b=a - kin.drift)
+
+    def error(self) -> np.ndarray:
+        """``-e`` (goal minus current, in the task's coordinates) at the last :meth:`rows`."""
+        return np.zeros(0) if self._last is None else -self._last.error
+
+    def reference_acceleration(self) -> np.ndarray:
+        """Return the feedback acceleration ``a_fb`` of the last :meth:`rows` (empty before)."""
+        return self._last_reference.copy()
+
+
+class VectorGoalTask(TrackingTask):
+    """A tracking task whose goal is a vector ``(goal_size,)`` (with velocity and acceleration)."""
+
+    goal_size: int = 3
+
+    @abc.abstractmethod
+    def value(self, state: RobotModel) -> np.ndarray:
+        """Return the current value a goal replaces (start of :meth:`move_to`) ``(goal_size,)``."""
+
+    def _check_goal(
+        self, goal: object, velocity: object | None, acceleration: object | None
+    ) -> TrajectorySample:
+        m = self.goal_size
+        w = self.where()
+        g = check_array(goal, (m,), f"{w}: goal")
+        v = np.zeros(m) if velocity is None else check_array(velocity, (m,), f"{w}: goal velocity")
+        a = (
+            np.zeros(m)
+            if acceleration is None
+            else check_array(acceleration, (m,), f"{w}: goal acceleration")
+        )
+        return TrajectorySample(g, v, a)
+
+    def set_goal(
+        self,
+        goal: object,
+        velocity: object | None = None,
+        acceleration: object | None = None,
+    ) -> None:
+        """Set a goal (copied) with optional feedforward velocity and acceleration.
+
+        Args:
+            goal: ``(goal_size,)`` in task units.
+            velocity: ``(goal_size,)`` goal velocity (default zero).
+            acceleration: ``(goal_size,)`` goal acceleration (default zero).
+
+        Raises:
+            InvalidInput: Wrong shape or NaN/inf (names the primitive).
+
+        """
+        self._store_goal(self._check_goal(goal, velocity, acceleration))
+
+    def move_to(self, state: RobotModel, goal: object, duration: float, t0: float) -> None:
+        """Reach ``goal`` along a :class:`MinimumJerk` from the current value, from ``t0`` [s].
+
+        Raises:
+            InvalidInput: Bad goal or duration.
+
+        """
+        g = self._check_goal(goal, None, None).position
+        self.set_trajectory(MinimumJerk(self.value(state), g, duration, t0))
+
+
+class VectorTrackingTask(VectorGoalTask):
+    """A tracking task on a vector ``x(q)`` ``(m,)``: ``e = W (x - x_goal)``.
+
+    Subclasses implement :meth:`measure` (``x``, ``xd``, ``J_x``, ``dJ_x v``);
+    the optional diagonal ``scale`` ``W`` (e.g. the normalising matrix of
+    seed 003 eq. 26) multiplies the error and its derivatives.
+    """
+
+    scale: np.ndarray | None = None
+
+    @abc.abstractmethod
+    def measure(self, state: RobotModel) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """``(x, xd, J_x, dJ_x v)`` at the updated state; ``xdd = J_x qdd + dJ_x v``."""
+
+    def value(self, state: RobotModel) -> np.ndarray:
+        """Return the current task value ``x`` ``(m,)`` (unscaled)."""
+        return self.measure(state)[0].copy()
+
+    def kinematics(self, state: RobotModel, t: float = 0.0) -> TaskKinematics:
+        """``e = W (x - x_goal)`` and its derivatives (see :class:`TaskKinematics`)."""
+        goal = self.goal_at(t)
+        x, xd, J, dJv = self.measure(state)
+        e = x - goal.position
+        rate = xd - goal.velocity
+        drift = dJv - goal.acceleration
+        if self.scale is not None:
+            w = self.scale
+            return TaskKinematics(w * e, w * rate, w[:, None] * J, w * drift)
+        return TaskKinematics(e, rate, J, drift)
