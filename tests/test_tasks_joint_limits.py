@@ -1,0 +1,224 @@
+"""Viable joint limits (Del Prete 2018) and the papers' activation zones (seed 003, eq. 25)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from hqp import InvalidGain
+from hqp.layout import Layout
+from hqp.model import RobotModel
+from hqp.tasks.base import Category
+from hqp.tasks.joint_limit_zone import JointLimitZone
+from hqp.tasks.joint_limits import JointLimits, max_acceleration_from_torques
+
+DT = 1e-3
+V_MAX = 1.0
+TAU_MAX = 100.0
+
+
+@pytest.fixture(scope="module")
+def arm() -> RobotModel:
+    model = pin.buildSampleModelManipulator()
+    return RobotModel(model, name="arm", floating_base=False,
+                      velocity_limits=np.full(6, V_MAX), torque_limits=np.full(6, TAU_MAX))
+
+
+@pytest.fixture(scope="module")
+def humanoid() -> RobotModel:
+    return RobotModel(pin.buildSampleModelHumanoid(), name="sample")
+
+
+def test_braking_at_maximum_velocity_stays_viable(arm: RobotModel) -> None:
+    """Each joint runs at v_max toward its upper limit taking the upper bound every step."""
+    dt = 4e-3  # any period works; a coarse one keeps the test fast
+    data = arm.model.createData()
+    q0 = arm.neutral()
+    arm.update(q0, np.zeros(arm.nv))
+    A = max_acceleration_from_torques(arm, margin=0.5)
+    assert np.all(A > 0) and np.all(np.isfinite(A))
+    task = JointLimits(qdd_max=A)
+    worst_torque = 0.0
+    for i in range(arm.na):
+        q, v = q0.copy(), np.zeros(arm.nv)
+        # Start at the last viable position for v_max, a little before.
+        q[i] = arm.q_upper[i] - V_MAX**2 / (2 * A[i]) - 0.05
+        v[i] = V_MAX
+        closest = np.inf
+        for _ in range(1200):
+            arm.update(q, v)
+            lb, ub = task.bounds(arm, dt)
+            assert np.all(lb <= ub + 1e-12)
+            assert ub[i] >= -A[i] - 1e-9  # braking never needs more than A
+            assert lb[i] <= A[i] + 1e-9
+            a = np.zeros(arm.nv)
+            a[i] = ub[i]
+            assert abs(a[i]) <= A[i] + 1e-9
+            tau = pin.rnea(arm.model, data, q, v, a)
+            worst_torque = max(worst_torque, float(np.max(np.abs(tau) / TAU_MAX)))
+            q = q + dt * v + 0.5 * dt**2 * a
+            v = v + dt * a
+            assert q[i] <= arm.q_upper[i] + 1e-12
+            assert abs(v[i]) <= V_MAX + 1e-9
+            closest = min(closest, arm.q_upper[i] - q[i])
+        # Not conservative: the joint ends up at its limit, nearly at rest (taking the
+        # upper bound every step leaves a velocity ripple of order A dt at the limit).
+        assert closest < 1e-3
+        assert abs(v[i]) < 2 * A[i] * dt
+    assert 0.05 < worst_torque <= 1.0
+
+
+def test_any_acceleration_in_the_bounds_keeps_the_state_viable(arm: RobotModel) -> None:
+    rng = np.random.default_rng(11)
+    A = np.full(arm.na, 3.0)
+    task = JointLimits(qdd_max=A)
+    for _ in range(200):
+        q = arm.random_configuration(rng)
+        room_up = arm.q_upper - q
+        room_lo = q - arm.q_lower
+        v_hi = np.minimum(V_MAX, np.sqrt(2 * A * room_up))
+        v_lo = np.minimum(V_MAX, np.sqrt(2 * A * room_lo))
+        v = rng.uniform(-v_lo, v_hi)
+        arm.update(q, v)
+        lb, ub = task.bounds(arm, DT)
+        assert np.all(lb <= ub + 1e-9)
+        assert np.all(ub >= -A - 1e-9) and np.all(lb <= A + 1e-9)
+        for a in (lb, ub, 0.5 * (lb + ub)):
+            q1 = q + DT * v + 0.5 * DT**2 * a
+            v1 = v + DT * a
+            assert np.all(q1 <= arm.q_upper + 1e-12) and np.all(q1 >= arm.q_lower - 1e-12)
+            assert np.all(np.abs(v1) <= V_MAX + 1e-9)
+            up = np.maximum(v1, 0.0) ** 2 - 2 * A * (arm.q_upper - q1)
+            down = np.minimum(v1, 0.0) ** 2 - 2 * A * (q1 - arm.q_lower)
+            assert np.all(up <= 1e-9) and np.all(down <= 1e-9)
+
+
+def test_state_that_is_not_viable_brakes(arm: RobotModel) -> None:
+    A = 2.0
+    task = JointLimits(qdd_max=A)
+    q = arm.neutral()
+    q[2] = arm.q_upper[2] - 0.01
+    v = np.zeros(arm.nv)
+    v[2] = 0.9  # braking distance 0.2 rad > 0.01 rad
+    v[4] = -1.5  # above v_max
+    arm.update(q, v)
+    lb, ub = task.bounds(arm, DT)
+    assert lb[2] == ub[2] == -A
+    assert lb[4] == ub[4] == A
+
+
+def test_max_acceleration_estimate_is_within_the_torque_limits(arm: RobotModel) -> None:
+    rng = np.random.default_rng(12)
+    data = arm.model.createData()
+    for _ in range(10):
+        q, v = arm.random_configuration(rng), 0.3 * rng.normal(size=arm.nv)
+        arm.update(q, v)
+        A = max_acceleration_from_torques(arm, margin=1.0)
+        ratios = []
+        for i in range(arm.na):
+            for sign in (1.0, -1.0):
+                a = np.zeros(arm.nv)
+                a[i] = sign * A[i]
+                ratios.append(np.max(np.abs(pin.rnea(arm.model, data, q, v, a)) / TAU_MAX))
+        assert max(ratios) <= 1.0 + 1e-9
+        assert max(ratios) > 0.99  # tight for some joint
+
+
+def test_joint_limit_rows_on_a_floating_base(humanoid: RobotModel) -> None:
+    rng = np.random.default_rng(13)
+    layout = Layout.build(humanoid.nv)
+    task = JointLimits(qdd_max=5.0, position_margin=0.01, velocity_scale=0.9)
+    assert task.category is Category.JOINT_LIMITS
+    q = humanoid.random_configuration(rng, margin=0.1)
+    humanoid.update(q, 0.1 * rng.normal(size=humanoid.nv))
+    rows = task.rows(humanoid, layout, DT, 0.0)
+    assert rows.C.shape == (humanoid.na, layout.n)
+    np.testing.assert_array_equal(rows.C[:, :6], 0.0)
+    np.testing.assert_array_equal(rows.C[:, 6:], np.eye(humanoid.na))
+    lb, ub = task.bounds(humanoid, DT)
+    np.testing.assert_array_equal(rows.lower, lb)
+    np.testing.assert_array_equal(rows.upper, ub)
+    assert np.all(ub <= 5.0) and np.all(lb >= -5.0)
+    # No estimate needed when qdd_max is infinite: one-step bounds only.
+    inf_task = JointLimits(qdd_max=np.inf)
+    lb_inf, ub_inf = inf_task.bounds(humanoid, DT)
+    assert np.all(ub_inf >= ub - 1e-9)
+
+
+def test_joint_limit_errors(humanoid: RobotModel) -> None:
+    with pytest.raises(InvalidGain, match="JointLimits 'jl': qdd_max"):
+        JointLimits("jl", qdd_max=0.0)
+    with pytest.raises(InvalidGain, match="margin"):
+        JointLimits(margin=1.5)
+    with pytest.raises(InvalidGain, match="position_margin"):
+        JointLimits(position_margin=-0.1)
+    with pytest.raises(InvalidGain, match="dt"):
+        JointLimits(qdd_max=1.0).bounds(humanoid, 0.0)
+    with pytest.raises(InvalidGain, match="2 entries"):
+        JointLimits(qdd_max=[1.0, 2.0]).bounds(humanoid, DT)
+
+
+def test_activation_zone_rows(humanoid: RobotModel) -> None:
+    layout = Layout.build(humanoid.nv)
+    task = JointLimitZone(zone=0.2, depth=0.3, kp=100.0, kv=20.0)
+    assert task.category is Category.JOINT_LIMITS
+    q = humanoid.neutral()
+    v = np.zeros(humanoid.nv)
+    humanoid.update(q, v)
+    assert task.rows(humanoid, layout, DT, 0.0).n_eq == 0
+    assert task.active == ()
+    qa = q[humanoid.actuated_q]
+    qa[3] = humanoid.q_upper[3] - 0.1
+    qa[7] = humanoid.q_lower[7] + 0.05
+    qa[9] = humanoid.q_upper[9] - 0.25  # outside the zone
+    q[humanoid.actuated_q] = qa
+    v[6 + 3], v[6 + 7] = 0.5, -0.2
+    humanoid.update(q, v)
+    rows = task.rows(humanoid, layout, DT, 0.0)
+    assert task.active == (humanoid.joint_names[3], humanoid.joint_names[7])
+    idx, q_limit = task.active_indices(humanoid)
+    np.testing.assert_array_equal(idx, [3, 7])
+    np.testing.assert_allclose(q_limit, [humanoid.q_upper[3] - 0.3, humanoid.q_lower[7] + 0.3])
+    expected_A = np.zeros((2, layout.n))
+    expected_A[0, 6 + 3] = expected_A[1, 6 + 7] = 1.0
+    np.testing.assert_array_equal(rows.A, expected_A)
+    e = q_limit - qa[idx]
+    np.testing.assert_allclose(task.error(), e)
+    np.testing.assert_allclose(rows.b, -20.0 * (np.array([0.5, -0.2]) - 5.0 * e))
+    # Velocity saturation (eq. 28): the desired velocity is scaled to max_velocity.
+    sat = JointLimitZone(zone=0.2, depth=0.3, kp=100.0, kv=20.0, max_velocity=0.1)
+    b = sat.rows(humanoid, layout, DT, 0.0).b
+    v_des = 5.0 * e * 0.1 / np.linalg.norm(5.0 * e)
+    np.testing.assert_allclose(b, -20.0 * (np.array([0.5, -0.2]) - v_des))
+
+
+def test_activation_zone_closed_loop_stops_before_the_limit(arm: RobotModel) -> None:
+    """A joint entering its zone at 1 rad/s is driven back to the safety position."""
+    layout = Layout.build(arm.nv)
+    task = JointLimitZone(zone=0.15, kp=100.0, kv=20.0)
+    q, v = arm.neutral(), np.zeros(arm.nv)
+    q[1] = arm.q_upper[1] - 0.2
+    v[1] = 1.0
+    peak = -np.inf
+    for _ in range(3000):
+        arm.update(q, v)
+        rows = task.rows(arm, layout, DT, 0.0)
+        a = np.zeros(arm.nv)
+        if rows.n_eq:
+            a[task.active_indices(arm)[0]] = rows.b
+        q = q + DT * v + 0.5 * DT**2 * a
+        v = v + DT * a
+        peak = max(peak, q[1])
+    assert peak < arm.q_upper[1] - 0.05
+    np.testing.assert_allclose(q[1], arm.q_upper[1] - 0.15, atol=2e-3)
+    assert task.active == (arm.joint_names[1],)
+
+
+def test_activation_zone_errors() -> None:
+    with pytest.raises(InvalidGain, match="JointLimitZone 'z'"):
+        JointLimitZone("z", zone=-0.1)
+    with pytest.raises(InvalidGain, match="kp"):
+        JointLimitZone(kp=0.0)
+    with pytest.raises(InvalidGain, match="max_velocity"):
+        JointLimitZone(max_velocity=-1.0)
