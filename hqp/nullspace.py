@@ -156,11 +156,18 @@ import logging
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 import scipy.linalg as sla
 
 from hqp.errors import InvalidInput, check_array
+
+if TYPE_CHECKING:
+    from hqp.controller import Command, TaskStatus
+    from hqp.model import RobotModel, RobotState
+    from hqp.stack import BuiltStack, Stack
+    from hqp.tasks.base import Task
 
 logger = logging.getLogger(__name__)
 
@@ -578,3 +585,410 @@ def floating_base_metric(
     Q = 0.5 * (Q + Q.T)
     target = -np.linalg.pinv(Q, rcond=1e-12, hermitian=True) @ (T.T @ W @ t0)
     return Q, target
+
+
+# ------------------------------------------------------------------------------------------------
+# The controller: the law on the tasks of a Stack, behind the Controller interface
+# ------------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class _LawProblem:
+    """The law's view of a built stack.
+
+    Attributes:
+        support: ``(J_s, b_s)`` qdd-only equality rows of the physics level (active contacts).
+        levels: ``(J_k, a_k)`` qdd-only equality rows of each other built level.
+        names: Level names.
+        built_levels: Built-level index of each law level.
+        task_rows: Per task name ``(law level, J (unweighted), a)`` of its qdd-only rows.
+        skipped: Notes on rows the law cannot use (inequalities, rows on contact forces).
+
+    """
+
+    support: tuple[np.ndarray, np.ndarray] | None
+    levels: list[tuple[np.ndarray, np.ndarray]]
+    names: list[str]
+    built_levels: list[int]
+    task_rows: dict[str, tuple[int, np.ndarray, np.ndarray]]
+    skipped: tuple[str, ...]
+
+
+def law_problem(built: object, stack: object, nv: int) -> _LawProblem:
+    """Turn the levels of a :class:`~hqp.stack.BuiltStack` into the law's matrices.
+
+    Rules (the task rows are the same objects the HQP solves, scaled by ``sqrt(weight)``):
+
+    * equality rows with a nonzero entry on the contact-force columns are physics rows (the
+      unactuated rows of the dynamics, released contact slots at zero) or force tasks; the law
+      embeds the dynamics itself and cannot command forces: they are not used;
+    * equality rows on ``qdd`` only, at the PHYSICS level, are the support rows ``J_s qdd = b_s``
+      (the active contacts' motion constraints);
+    * equality rows on ``qdd`` only, at any other level, are that level's task rows;
+    * inequality rows are not used (the law has none); the controller reports their violation.
+
+    Args:
+        built: A :class:`~hqp.stack.BuiltStack`.
+        stack: The :class:`~hqp.stack.Stack` it was built from.
+        nv: Number of joint velocities.
+
+    Returns:
+        The law's support, levels and per-task rows.
+
+    """
+    from hqp.tasks.base import Category
+
+    by_level: dict[int, list] = {}
+    for span in built.spans:  # type: ignore[attr-defined]
+        by_level.setdefault(span.built_level, []).append(span)
+    support_J: list[np.ndarray] = []
+    support_b: list[np.ndarray] = []
+    levels: list[tuple[np.ndarray, np.ndarray]] = []
+    names: list[str] = []
+    built_levels: list[int] = []
+    task_rows: dict[str, tuple[int, np.ndarray, np.ndarray]] = {}
+    skipped: list[str] = []
+    for k, level in enumerate(built.levels):  # type: ignore[attr-defined]
+        index = built.level_index[k]  # type: ignore[attr-defined]
+        physics = stack.level_categories[index] is Category.PHYSICS  # type: ignore[attr-defined]
+        J_rows: list[np.ndarray] = []
+        a_rows: list[np.ndarray] = []
+        for span in by_level.get(k, []):
+            rows = built.rows[span.name]  # type: ignore[attr-defined]
+            if rows.C is not None and rows.C.shape[0] and not physics:
+                skipped.append(f"{span.name}: {rows.C.shape[0]} inequality rows not enforced")
+            if rows.A is None or rows.A.shape[0] == 0:
+                continue
+            A = np.asarray(level.A)[span.eq]
+            b = np.asarray(level.b)[span.eq]
+            qdd_only = ~np.any(A[:, nv:] != 0.0, axis=1)
+            if not physics and not qdd_only.all():
+                skipped.append(f"{span.name}: rows on contact forces not used")
+            if not qdd_only.any():
+                continue
+            if physics:
+                support_J.append(A[qdd_only, :nv])
+                support_b.append(b[qdd_only])
+            else:
+                J_rows.append(A[qdd_only, :nv])
+                a_rows.append(b[qdd_only])
+                task_rows[span.name] = (
+                    len(levels),
+                    np.asarray(rows.A)[qdd_only, :nv],
+                    np.asarray(rows.b)[qdd_only],
+                )
+        if not physics and J_rows:
+            levels.append((np.vstack(J_rows), np.concatenate(a_rows)))
+            names.append(str(level.name))
+            built_levels.append(k)
+    support = (np.vstack(support_J), np.concatenate(support_b)) if support_J else None
+    return _LawProblem(support, levels, names, built_levels, task_rows, tuple(skipped))
+
+
+def _controller_base() -> type:
+    from hqp.controller import WholeBodyController
+
+    return WholeBodyController
+
+
+class NullSpaceController(_controller_base()):  # type: ignore[misc]
+    """The papers' null-space torque law behind the HQP controller's interface.
+
+    Same constructor shape, same :meth:`step`, same :class:`~hqp.controller.Command` and
+    :class:`~hqp.controller.FeasibilityReport` as :class:`~hqp.controller.WholeBodyController`
+    (it reuses its stack handling, torque blending, safe command and torque-limit check); only
+    the solve differs: the task rows of the stack become the law's levels (:func:`law_problem`),
+    solved by :func:`prioritized_torques`.
+
+    Reports: a task's ``TaskStatus.sigma_min`` holds the smallest eigenvalue of its own
+    ``Lambda_task|prec(level)^-1`` (eq. 16, 22: ``m``-th eigenvalue of its ``m`` rows, 0 when
+    the levels above leave fewer than ``m`` directions), the law's feasibility measure; the
+    task is SINGULAR when that eigenvalue is below ``singular_tolerance`` times the largest
+    eigenvalue of its unprojected ``Lambda^-1``. Residuals and conflicts are measured on the
+    task's unweighted rows as in the HQP controller; inequality rows (friction, torque and
+    viable joint limits) are not enforced by the law, only reported. The full per-level
+    eigenvalues of the last step are in ``last_law.levels``.
+
+    Args:
+        robot_model: The controller's robot model.
+        contacts: Contacts to declare (as for the HQP controller).
+        stack: The levels of tasks (joint limits the papers' way: put a
+            :class:`~hqp.tasks.joint_limit_zone.JointLimitZone` at the top task level).
+        dt: Control period [s].
+        backend: Accepted for call compatibility with the HQP controller; unused.
+        algorithm: Accepted for call compatibility; unused.
+        eig_tol: Relative eigenvalue threshold of eq. 22 (:data:`EIG_TOL`).
+        internal_forces: ``"min-norm"`` (default: feet share the load without squeezing) or
+            ``"none"`` (the plain law); see :func:`prioritized_torques`.
+        method: ``"whitened"`` or ``"literal"`` (see :func:`prioritized_torques`).
+        tolerance: A task whose unweighted residual norm exceeds this is in conflict.
+        singular_tolerance: Relative eigenvalue threshold of the SINGULAR status.
+        damping: Joint damping of the safe command [N m s/rad].
+        final_metric: Accepted for call compatibility; unused (the law's tie-break is fixed:
+            least ``tau^T Phi tau``, module docstring).
+        final_target: Accepted for call compatibility; unused.
+        diagnostics: ``"full"`` (per-task eigenvalues and ``yields_to``) or ``"residuals"``.
+
+    Raises:
+        InvalidInput: Bad period, tolerances, ``eig_tol``, ``internal_forces`` or ``method``.
+
+    """
+
+    def __init__(
+        self,
+        robot_model: RobotModel,
+        contacts: Sequence[Task] = (),
+        stack: Stack | None = None,
+        dt: float = 0.001,
+        backend: str | None = None,
+        algorithm: str | None = None,
+        *,
+        eig_tol: float = EIG_TOL,
+        internal_forces: str = "min-norm",
+        method: str = "whitened",
+        tolerance: float = 1e-5,
+        singular_tolerance: float = 1e-6,
+        damping: float = 2.0,
+        final_metric: np.ndarray | None = None,
+        final_target: np.ndarray | None = None,
+        diagnostics: str = "full",
+    ) -> None:
+        super().__init__(robot_model, contacts, stack, dt, tolerance=tolerance,
+                         singular_tolerance=singular_tolerance, diagnostics=diagnostics,
+                         damping=damping)
+        if not (np.isfinite(eig_tol) and 0.0 < eig_tol < 1.0):
+            raise InvalidInput(f"NullSpaceController: eig_tol must be in (0, 1), got {eig_tol}")
+        if internal_forces not in ("none", "min-norm"):
+            raise InvalidInput(
+                "NullSpaceController: internal_forces must be 'none' or 'min-norm', "
+                f"got {internal_forces!r}"
+            )
+        if method not in ("whitened", "literal"):
+            raise InvalidInput(
+                f"NullSpaceController: method must be 'whitened' or 'literal', got {method!r}"
+            )
+        self.backend = "nullspace"
+        self.algorithm = "nullspace"
+        self.eig_tol = float(eig_tol)
+        self.internal_forces = internal_forces
+        self.method = method
+        self.last_law: LawSolution | None = None
+        self.last_problem: _LawProblem | None = None
+
+    # -- one step ---------------------------------------------------------------------------
+
+    def step(self, state: RobotState, t: float) -> Command:
+        """One control step: update, rows, the law, torques, feasibility report.
+
+        Args:
+            state: Measured state (``q`` ``(nq,)``, ``v`` ``(nv,)``, pinocchio convention).
+            t: Control time [s].
+
+        Returns:
+            The command; ``safe_mode`` when the law failed or gave non-finite values.
+
+        Raises:
+            InvalidInput: The state has the wrong shape or holds NaN or inf.
+
+        """
+        from hqp.controller import Command, FeasibilityReport
+        from hqp.errors import HQPError
+
+        clock = time.perf_counter
+        c0 = clock()
+        m = self.model
+        m.update(state.q, state.v)
+        c1 = clock()
+        x_prev = self.last_x
+        if [(c.name, c.frame, c.kind) for c in self.layout.contacts] != (
+            self.stack.layout_contacts()
+        ):
+            self._relayout()
+            x_prev = None
+        built = self.stack.build(m, self.layout, self.dt, t, x_prev)
+        problem = law_problem(built, self.stack, m.nv)
+        c2 = clock()
+        notes: list[str] = []
+        law = None
+        try:
+            law = prioritized_torques(
+                m.M, m.h, problem.levels,
+                S=m.selection() if m.nv_base else None,
+                support=problem.support, names=problem.names, eig_tol=self.eig_tol,
+                internal_forces=self.internal_forces, method=self.method,
+            )
+        except (HQPError, np.linalg.LinAlgError) as exc:
+            notes.append(f"law failed: {exc}")
+            logger.warning("t=%.4f: null-space law failed (%s); safe command sent", t, exc)
+        c3 = clock()
+        x = None
+        if law is not None and np.all(np.isfinite(law.tau)) and np.all(np.isfinite(law.qdd)):
+            x = self._decision_vector(law, problem)
+        elif law is not None:
+            notes.append("law returned non-finite values")
+        safe = x is None
+        if safe:
+            tau, qdd, wrenches = self.safe_command()
+            notes.append("safe mode: gravity and contact compensation with joint damping")
+            self.last_x = None
+        else:
+            assert x is not None and law is not None
+            tau = law.tau.copy()
+            qdd = law.qdd.copy()
+            wrenches = {c.name: x[c.slice].copy() for c in self.layout.contacts}
+            self.last_x = x.copy()
+        tau, suspended = self._blend(tau, t, notes)
+        if np.any(np.abs(tau) > m.tau_max + 1e-9):
+            tau = np.clip(tau, -m.tau_max, m.tau_max)
+            notes.append("command clipped to the model's torque limits")
+        c4 = clock()
+        statuses: tuple = ()
+        costs: tuple[float, ...] = ()
+        if not safe and law is not None and x is not None:
+            statuses = self._law_statuses(built, problem, law, x)
+            costs = tuple(_level_cost(level, x) for level in built.levels)
+            notes.extend(problem.skipped)
+        report = FeasibilityReport(tasks=statuses, safe_mode=safe,
+                                   strictness_suspended=suspended, notes=tuple(notes),
+                                   level_costs=costs)
+        c5 = clock()
+        self.last_t = float(t)
+        self.last_tau = tau
+        self.last_built = built
+        self.last_law = law
+        self.last_problem = problem
+        timings = {"update": c1 - c0, "rows": c2 - c1, "solve": c3 - c2, "torques": c4 - c3,
+                   "report": c5 - c4, "total": c5 - c0}
+        return Command(tau=tau, qdd=qdd, wrenches=wrenches, report=report, safe_mode=safe,
+                       timings=timings, t=float(t))
+
+    def _decision_vector(self, law: LawSolution, problem: _LawProblem) -> np.ndarray:
+        """``x = [qdd | wrenches]`` of the law: support forces mapped to the active slots."""
+        from hqp.tasks.dynamics import contact_jacobian
+
+        m = self.model
+        x = np.zeros(self.layout.n)
+        x[: m.nv] = law.qdd
+        if problem.support is None or law.f.size == 0:
+            return x
+        generalized = problem.support[0].T @ law.f  # J_s^T f, (nv,)
+        active = [s for s in self.layout.contacts if s.name in self.stack.active_contacts]
+        if not active:
+            return x
+        JfT = np.hstack([contact_jacobian(m, s).T for s in active])
+        w = np.linalg.lstsq(JfT, generalized, rcond=None)[0]
+        start = 0
+        for s in active:
+            x[s.slice] = w[start:start + s.size]
+            start += s.size
+        return x
+
+    # -- report -----------------------------------------------------------------------------
+
+    def _law_statuses(
+        self, built: BuiltStack, problem: _LawProblem, law: LawSolution, x: np.ndarray
+    ) -> tuple[TaskStatus, ...]:
+        """Per-task feasibility: residuals at ``x``, eigenvalues of ``Lambda^-1`` (eq. 22)."""
+        from hqp.controller import Feasibility, TaskStatus
+
+        full = self.diagnostics == "full"
+        out = []
+        for span in built.spans:
+            rows = built.rows[span.name]
+            parts = []
+            if rows.A is not None:
+                parts.append(rows.A @ x - rows.b)
+            if rows.C is not None:
+                parts.append(_violation(rows.C, rows.lower, rows.upper, x))
+            residual = float(np.linalg.norm(np.concatenate(parts))) if parts else 0.0
+            eig_min = float("nan")
+            singular = False
+            entry = problem.task_rows.get(span.name)
+            if entry is not None and full:
+                k, J, _ = entry
+                Jh = J @ law.whiten
+                ref = float(np.linalg.norm(Jh, 2)) ** 2
+                eig = np.linalg.eigvalsh(law.inverse_inertia(J, k))[::-1]
+                if J.shape[0] > law.bases[k].shape[1]:
+                    eig_min = 0.0
+                else:
+                    eig_min = float(max(eig[J.shape[0] - 1], 0.0))
+                singular = eig_min < self.singular_tolerance * ref
+            elif entry is not None:
+                k = entry[0]
+                eig_min = law.levels[k].eig_min
+            yields_to = None
+            if residual > self.tolerance:
+                status = Feasibility.CONFLICT
+                if entry is not None and full:
+                    yields_to = self._law_yields_to(entry, law, problem, built, span.level)
+            elif singular:
+                status = Feasibility.SINGULAR
+            else:
+                status = Feasibility.SATISFIED
+            out.append(TaskStatus(span.name, span.level, status, residual, yields_to, eig_min))
+        return tuple(out)
+
+    def _law_yields_to(
+        self,
+        entry: tuple[int, np.ndarray, np.ndarray],
+        law: LawSolution,
+        problem: _LawProblem,
+        built: BuiltStack,
+        own_level: int,
+    ) -> int | None:
+        """Highest level whose null space leaves the task's residual above the tolerance.
+
+        The residual reachable from the law's ``qdd`` by torques the levels ``0..j`` leave free
+        is ``min_y ||r + J W Z_{j+1} y||`` (whitened bases of eq. 19); the first ``j`` where it
+        exceeds the tolerance is the level the task yields to (the physics level when the
+        support alone blocks it), its own level when only tasks of its level block it, and
+        ``None`` when no torque at all can meet it.
+        """
+        k, J, a = entry
+        r0 = J @ law.qdd - a
+        Jh = J @ law.whiten
+        scale = max(1.0, float(np.abs(Jh).max(initial=0.0)))
+
+        def reachable(Z: np.ndarray) -> float:
+            if Z.shape[1] == 0:
+                return float(np.linalg.norm(r0))
+            U, sv, _ = np.linalg.svd(Jh @ Z, full_matrices=False)
+            U = U[:, sv > 1e-9 * scale]
+            return float(np.linalg.norm(r0 - U @ (U.T @ r0)))
+
+        if reachable(law.bases[0]) > self.tolerance:
+            if problem.support is not None:
+                r_free = np.linalg.lstsq(J, -r0, rcond=None)[0]
+                if np.linalg.norm(r0 + J @ r_free) <= self.tolerance:
+                    return built.level_index[0]
+            return None
+        for j in range(k):
+            if reachable(law.bases[j + 1]) > self.tolerance:
+                return built.level_index[problem.built_levels[j]]
+        return own_level
+
+
+def _violation(
+    C: np.ndarray, lower: np.ndarray | None, upper: np.ndarray | None, x: np.ndarray
+) -> np.ndarray:
+    """Signed distance of ``C x`` outside ``[lower, upper]`` (0 inside)."""
+    cx = C @ x
+    out = np.zeros_like(cx)
+    if upper is not None:
+        out = np.where(cx > upper, cx - upper, out)
+    if lower is not None:
+        out = np.where(cx < lower, cx - lower, out)
+    return out
+
+
+def _level_cost(level: object, x: np.ndarray) -> float:
+    """Return ``||A x - b||^2 + ||dist(C x, [lower, upper])||^2`` of a solver level at ``x``."""
+    cost = 0.0
+    A = getattr(level, "A", None)
+    if A is not None:
+        cost += float(np.sum((np.asarray(A) @ x - np.asarray(level.b)) ** 2))  # type: ignore[attr-defined]
+    C = getattr(level, "C", None)
+    if C is not None:
+        cost += float(np.sum(_violation(np.asarray(C), level.lower, level.upper, x) ** 2))  # type: ignore[attr-defined]
+    return cost

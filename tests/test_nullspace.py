@@ -177,7 +177,7 @@ def test_fixed_base_law_equals_hqp_with_inertia_metric(robot):
         tau0 = M @ zero.x + h
         gaps.append(np.linalg.norm(tau0 - law.tau))
     # The difference is the M-projection of M^-1 h on the redundancy: far above solver noise.
-    assert min(gaps) > 1e-2, gaps
+    assert min(gaps) > 0.5, gaps  # [N m]; measured 0.72 (g1-fixed) and 6.7 (panda)
 
 
 @pytest.mark.parametrize("robot", sorted(FIXED_ROBOTS))
