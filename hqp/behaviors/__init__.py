@@ -1,0 +1,42 @@
+"""The action layer (seed 001): action primitives and behaviors as state machines.
+
+* :class:`ActionPrimitive`: a named task set, each task with its priority level and
+  parameters; goals written ``input.<name>`` are runtime inputs.
+* :class:`Behavior`: a state machine over action primitives whose phases form an
+  :class:`enum.Enum`; transitions read simulated time, sensed state and the servo's
+  feasibility flags; a safety phase is entered when a watched task becomes infeasible.
+* Behavior description files (TOML, :func:`load_behavior`), and the bundled library
+  (:func:`library_names`): ``stand``, ``reach``, ``mimic``, ``screwgun``, ``squat-jump``,
+  ``walk``.
+* :func:`run_behavior`: a behavior in closed loop with MuJoCo (``hqp run``).
+"""
+
+from hqp.behaviors.behavior import Behavior, FeasibilityEvent
+from hqp.behaviors.inputs import InputStream
+from hqp.behaviors.loader import LIBRARY, library_names, load_behavior, parse_behavior
+from hqp.behaviors.spec import (
+    ActionPrimitive,
+    BehaviorSpec,
+    InputSpec,
+    PhaseSpec,
+    PlannerSpec,
+    TaskSpec,
+    Transition,
+)
+
+__all__ = [
+    "LIBRARY",
+    "ActionPrimitive",
+    "Behavior",
+    "BehaviorSpec",
+    "FeasibilityEvent",
+    "InputSpec",
+    "InputStream",
+    "PhaseSpec",
+    "PlannerSpec",
+    "TaskSpec",
+    "Transition",
+    "library_names",
+    "load_behavior",
+    "parse_behavior",
+]

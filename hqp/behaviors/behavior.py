@@ -1,0 +1,352 @@
+"""Behaviors: state machines over action primitives (the seed's whole-body behaviors).
+
+A :class:`Behavior` drives a controller (:class:`hqp.controller.Controller`,
+HQP or null-space alike). Each control step, after the controller has
+computed its command at the measured state, :meth:`Behavior.update`
+
+1. reads the sensed state: simulated time, sensed contacts, centre of
+   gravity, frame positions, joint positions, task errors, and the servo's
+   feasibility flags (seed 001: "the servo module sends a flag to the active
+   behavior indicating infeasibility of the movement");
+2. enters the phase's safety phase when a watched task is infeasible, i.e. in
+   conflict with a higher level (seed Figure 13), else fires the first
+   transition whose condition holds;
+3. on a phase change, writes the new active task set (the seed's "active task
+   set" register): tasks that stay keep running untouched, new tasks are ramped
+   in from zero effect by the stack, removed tasks are blended out, released
+   contacts are first unloaded, so the motion does not jerk;
+4. evaluates the goals of the active tasks (constants, runtime inputs,
+   planner outputs, or expressions of the sensed state) and sets them.
+
+Transitions read simulated time (``t``, ``phase_time``), never the wall clock.
+"""
+
+from __future__ import annotations
+
+import enum
+import logging
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from hqp.behaviors.expressions import ExpressionError, Namespace
+from hqp.behaviors.factory import TaskFactory
+from hqp.behaviors.inputs import InputStream
+from hqp.behaviors.spec import BehaviorSpec, PhaseSpec
+from hqp.controller import Feasibility
+from hqp.errors import BehaviorFileError
+
+if TYPE_CHECKING:
+    from hqp.controller import Controller, FeasibilityReport
+    from hqp.model import RobotState
+
+logger = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class FeasibilityEvent:
+    """A change of a task's feasibility flag, or a safety transition.
+
+    Attributes:
+        t: Simulated time [s].
+        phase: Active phase.
+        task: Task name.
+        status: ``"infeasible"`` (in conflict with a higher level), ``"feasible"``,
+            or ``"safety"`` (the behavior entered its safety phase because of this task).
+        level: The task's level.
+        yields_to: The higher level it yields to (``None`` when not in conflict).
+        residual: Norm of its residual [task units / s^2].
+
+    """
+
+    t: float
+    phase: str
+    task: str
+    status: str
+    level: int
+    yields_to: int | None
+    residual: float
+
+    def as_dict(self) -> dict[str, Any]:
+        """JSON-ready dictionary."""
+        return {
+            "t": round(self.t, 4), "phase": self.phase, "task": self.task, "status": self.status,
+            "level": self.level, "yields_to": self.yields_to, "residual": float(self.residual),
+        }
+
+
+class Behavior:
+    """A running behavior: the state machine of a :class:`BehaviorSpec` on a controller.
+
+    Args:
+        spec: The behavior description.
+        controller: The controller whose active task set the behavior writes.
+        factory: Builds the tasks of the spec for the controller's robot.
+        inputs: Runtime inputs (default: the spec's defaults).
+        planner: Trajectory generator providing ``plan.*`` (required when the spec
+            declares one; see :mod:`hqp.behaviors.planners`).
+        standing: Standing configuration ``(nq,)`` (``standing`` in goal expressions).
+        safety_steps: Consecutive infeasible control steps of a watched task before
+            the safety phase is entered (filters single-step flags).
+        infeasible_residual: Residual below which a conflict is not counted as
+            infeasible [task units / s^2].
+
+    Attributes:
+        Phase: The :class:`enum.Enum` of the phases.
+        phase: The active phase (a member of ``Phase``).
+        visited: Phases entered, in order (with repetitions).
+        events: Feasibility events and safety transitions.
+
+    """
+
+    def __init__(
+        self,
+        spec: BehaviorSpec,
+        controller: Controller,
+        factory: TaskFactory,
+        *,
+        inputs: InputStream | None = None,
+        planner: Any = None,
+        standing: np.ndarray | None = None,
+        safety_steps: int = 5,
+        infeasible_residual: float = 1e-3,
+    ) -> None:
+        if spec.planner is not None and planner is None:
+            raise BehaviorFileError(f"{spec.path}: behavior {spec.name!r} needs a planner "
+                                    f"of type {spec.planner.type!r}")
+        self.spec = spec
+        self.controller = controller
+        self.factory = factory
+        self.inputs = inputs if inputs is not None else InputStream(spec.inputs)
+        self.planner = planner
+        self.standing = standing
+        self.safety_steps = int(safety_steps)
+        self.infeasible_residual = float(infeasible_residual)
+        self.Phase: type[enum.Enum] = spec.phase_enum()
+        self.tasks = {name: factory.build(ts) for name, ts in spec.tasks.items()}
+        self.phase: enum.Enum = self.Phase(spec.initial)
+        self.visited: list[str] = []
+        self.events: list[FeasibilityEvent] = []
+        self.phase_start = 0.0
+        self.t0 = 0.0
+        self.com0 = np.zeros(3)
+        self.feet_center = np.zeros(3)
+        self._initial: dict[str, Any] = {}
+        self._levels: dict[str, int] = {}
+        self._flags: dict[str, bool] = {}
+        self._bad_steps: dict[str, int] = {}
+        self._started = False
+
+    # -- public -----------------------------------------------------------------------------
+
+    @property
+    def phase_spec(self) -> PhaseSpec:
+        """Description of the active phase."""
+        return self.spec.phases[self.phase.value]
+
+    def start(self, state: RobotState, t: float) -> None:
+        """Enter the initial phase at time ``t`` [s] (the controller's model is updated here)."""
+        model = self.controller.model
+        model.update(state.q, state.v)
+        self.t0 = float(t)
+        self.com0 = model.com.copy()
+        self.feet_center = self.factory.feet_center(model)
+        if self.planner is not None:
+            self.planner.start(model, t)
+        self._started = True
+        self._enter(self.spec.initial, state, t)
+        self._set_goals(state, t)
+
+    def update(self, state: RobotState, t: float, report: FeasibilityReport | None) -> None:
+        """One step of the state machine, after the controller's step at ``state``.
+
+        Args:
+            state: Measured state of this step (its ``contacts`` are the sensed contacts).
+            t: Simulated time [s].
+            report: The controller's feasibility report of this step.
+
+        """
+        if not self._started:
+            self.start(state, t)
+            return
+        safety_task = self._feasibility(report, t)
+        phase = self.phase_spec
+        target = None
+        if safety_task is not None and phase.safety is not None:
+            status = report[safety_task] if report is not None else None
+            self.events.append(FeasibilityEvent(
+                t, phase.name, safety_task, "safety", self._levels.get(safety_task, -1),
+                None if status is None else status.yields_to,
+                0.0 if status is None else status.residual))
+            target = phase.safety
+        else:
+            env = self._env(state, t, None)
+            for tr in phase.transitions:
+                try:
+                    fire = bool(tr.when.evaluate(env))
+                except ExpressionError as exc:
+                    raise BehaviorFileError(
+                        f"{self.spec.path}: phases.{phase.name}.transitions: {exc}") from None
+                if fire:
+                    target = tr.to
+                    break
+        if target is not None:
+            self._enter(target, state, t)
+        self._set_goals(state, t)
+
+    # -- internals --------------------------------------------------------------------------
+
+    def _feasibility(self, report: FeasibilityReport | None, t: float) -> str | None:
+        """Update the infeasibility flags; return a watched task that calls for safety."""
+        if report is None:
+            return None
+        phase = self.phase_spec
+        trigger = None
+        for status in report.tasks:
+            if status.name not in self.tasks:
+                continue
+            bad = (
+                status.status is Feasibility.CONFLICT
+                and status.yields_to is not None
+                and status.yields_to < status.level
+                and status.residual > self.infeasible_residual
+            )
+            if bad != self._flags.get(status.name, False):
+                self._flags[status.name] = bad
+                self.events.append(FeasibilityEvent(
+                    t, phase.name, status.name, "infeasible" if bad else "feasible",
+                    status.level, status.yields_to, status.residual))
+            self._bad_steps[status.name] = self._bad_steps.get(status.name, 0) + 1 if bad else 0
+            if (status.name in phase.watch and trigger is None
+                    and self._bad_steps[status.name] >= self.safety_steps):
+                trigger = status.name
+        return trigger
+
+    def _enter(self, name: str, state: RobotState, t: float) -> None:
+        """Write the active task set and contacts of phase ``name``."""
+        ctrl = self.controller
+        new = self.spec.phases[name]
+        ramp = new.ramp_time if new.ramp_time is not None else self.spec.ramp_time
+        # contacts: make the new ones, unload the released ones
+        active = set(ctrl.active_contacts)
+        for c in new.contacts:
+            if c not in active:
+                ctrl.activate_contact(c, t=t)
+        unload = new.unload_time if new.unload_time is not None else self.spec.unload_time
+        for c in sorted(active - set(new.contacts)):
+            ctrl.deactivate_contact(c, t=t, unload_time=unload)
+        # tasks: keep, move, remove, add
+        wanted = {ts.name: ts for ts in new.action.tasks}
+        for tname in list(self._levels):
+            if tname not in wanted:
+                ctrl.remove_task(tname, t=t)
+                del self._levels[tname]
+        for tname, ts in wanted.items():
+            level = ctrl.stack.level_of(ts.level, self.tasks[tname])
+            if tname in self._levels:
+                if self._levels[tname] != level:
+                    ctrl.stack.move(tname, level, t=t)
+                    self._levels[tname] = level
+            else:
+                ctrl.add_task(self.tasks[tname], level, t=t, ramp_time=ramp)
+                self._levels[tname] = level
+        # goals' ``initial``: each task's value when the phase begins
+        model = ctrl.model
+        self._initial = {tname: self.factory.current(self.tasks[tname], self.spec.tasks[tname],
+                                                      model) for tname in wanted}
+        self.phase = self.Phase(name)
+        self.phase_start = float(t)
+        self.visited.append(name)
+        logger.info("t=%.3f s: phase %s", t, name)
+
+    def _env(self, state: RobotState, t: float, initial: Any) -> dict[str, Any]:
+        model = self.controller.model
+        sensed = dict(state.contacts or {})
+        factory = self.factory
+        env: dict[str, Any] = {
+            "t": float(t) - self.t0,
+            "phase_time": float(t) - self.phase_start,
+            "com": model.com.copy(),
+            "com_velocity": model.com_velocity.copy(),
+            "com0": self.com0,
+            "feet_center": self.feet_center,
+            "contact": Namespace({c: bool(sensed.get(c, False)) for c in factory.contact_names},
+                                 "contact"),
+            "contacts": sum(bool(sensed.get(c, False)) for c in factory.contact_names),
+            "error": _LazyNamespace(lambda n: self._error(n), self.tasks, "error"),
+            "infeasible": Namespace({n: self._flags.get(n, False) for n in self.tasks},
+                                    "infeasible"),
+            "joint": _LazyNamespace(lambda n: factory.joint(model, n), factory.joint_names,
+                                    "joint"),
+            "joint_margin": _LazyNamespace(lambda n: factory.joint_margin(model, n),
+                                           factory.joint_names, "joint_margin"),
+            "input": _LazyNamespace(lambda n: self.inputs.value(n, float(t) - self.t0),
+                                    self.spec.inputs, "input"),
+            "frame": _LazyNamespace(lambda n: factory.frame_position(model, n),
+                                    model.frame_names, "frame"),
+            "plan": Namespace(self.planner.outputs(t) if self.planner is not None else {},
+                              "plan"),
+        }
+        if initial is not None:
+            env["initial"] = initial
+        if self.standing is not None:
+            env["standing"] = self.standing
+        env["pose"] = _LazyNamespace(self._pose, self.spec.poses, "pose")
+        return env
+
+    def _pose(self, name: str) -> np.ndarray:
+        """Configuration ``(nq,)``: the standing one with the captured pose's joints."""
+        model = self.controller.model
+        q = (self.standing if self.standing is not None else model.q).copy()
+        for joint, value in self.spec.poses[name].items():
+            q[model.actuated_q.start + model.joint_index(joint)] = value
+        return q
+
+    def _error(self, name: str) -> float:
+        err = np.asarray(self.tasks[name].error(), dtype=float)
+        return float(np.linalg.norm(err)) if err.size else 0.0
+
+    def _set_goals(self, state: RobotState, t: float) -> None:
+        phase = self.phase_spec
+        base_env = None
+        for ts in phase.action.tasks:
+            goals = dict(ts.goals)
+            goals.update(phase.goals.get(ts.name, {}))
+            if not goals:
+                continue
+            if base_env is None:
+                base_env = self._env(state, t, None)
+            env = dict(base_env)
+            env["initial"] = self._initial.get(ts.name)
+            values: dict[str, Any] = {}
+            for gname, expr in goals.items():
+                try:
+                    values[gname] = expr.evaluate(env)
+                except ExpressionError as exc:
+                    raise BehaviorFileError(
+                        f"{self.spec.path}: goal {gname} of task {ts.name!r} in phase "
+                        f"{phase.name!r}: {exc}") from None
+            self.factory.set_goals(self.tasks[ts.name], ts, values)
+
+
+class _LazyNamespace(Namespace):
+    """A :class:`Namespace` whose values are computed on first use."""
+
+    def __init__(self, getter: Any, names: Any, kind: str) -> None:
+        super().__init__({}, kind)
+        self._getter = getter
+        self._known = set(names)
+        self._cache: dict[str, Any] = {}
+
+    def get(self, name: str) -> Any:
+        if name not in self._known:
+            raise ExpressionError(f"unknown name {self._kind}.{name}; known: "
+                                  f"{', '.join(sorted(self._known))}")
+        if name not in self._cache:
+            self._cache[name] = self._getter(name)
+        return self._cache[name]
+
+    def names(self) -> list[str]:
+        return sorted(self._known)
+

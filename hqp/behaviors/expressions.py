@@ -1,0 +1,246 @@
+"""A small, safe expression language for behavior files.
+
+Transition conditions (``when = "phase_time > 0.5 and contacts == 0"``) and
+task goals (``goal = "initial + [0, 0, -0.12]"``) are written as Python-like
+expressions and evaluated each control step against a namespace of sensed
+quantities (simulated time, contacts, centre of gravity, task errors,
+feasibility flags, runtime inputs, planner outputs). Only literals, names,
+attribute access, indexing, arithmetic, comparisons, boolean operators, list
+literals (turned into arrays) and a few whitelisted functions are allowed;
+anything else is rejected when the file is loaded, never at run time.
+"""
+
+from __future__ import annotations
+
+import ast
+import operator
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+_BINARY: dict[type, Callable[[Any, Any], Any]] = {
+    ast.Add: operator.add,
+    ast.Sub: operator.sub,
+    ast.Mult: operator.mul,
+    ast.Div: operator.truediv,
+    ast.Pow: operator.pow,
+}
+_UNARY: dict[type, Callable[[Any], Any]] = {
+    ast.USub: operator.neg,
+    ast.UAdd: operator.pos,
+    ast.Not: operator.not_,
+}
+_COMPARE: dict[type, Callable[[Any, Any], Any]] = {
+    ast.Lt: operator.lt,
+    ast.LtE: operator.le,
+    ast.Gt: operator.gt,
+    ast.GtE: operator.ge,
+    ast.Eq: operator.eq,
+    ast.NotEq: operator.ne,
+}
+
+
+def _norm(x: object) -> float:
+    return float(np.linalg.norm(np.asarray(x, dtype=float)))
+
+
+FUNCTIONS: dict[str, Callable[..., Any]] = {
+    "abs": lambda x: np.abs(x) if isinstance(x, np.ndarray) else abs(x),
+    "min": min,
+    "max": max,
+    "norm": _norm,
+    "clip": lambda x, lo, hi: np.clip(x, lo, hi),
+    "all": lambda x: bool(np.all(x)),
+    "any": lambda x: bool(np.any(x)),
+}
+"""Functions callable from an expression."""
+
+
+class ExpressionError(Exception):
+    """An expression is malformed or refers to a name that does not exist."""
+
+
+class Namespace:
+    """Attribute-style access to a mapping: ``contact.left_foot``, ``error.hand``.
+
+    Args:
+        values: The names and their values.
+        kind: Name of the namespace, for error messages (e.g. ``"contact"``).
+
+    """
+
+    def __init__(self, values: Mapping[str, Any], kind: str) -> None:
+        self._values = dict(values)
+        self._kind = kind
+
+    def get(self, name: str) -> Any:
+        """Value of ``name``.
+
+        Raises:
+            ExpressionError: Unknown name (the message lists the known ones).
+
+        """
+        try:
+            return self._values[name]
+        except KeyError:
+            known = ", ".join(sorted(self._values)) or "none"
+            raise ExpressionError(f"unknown name {self._kind}.{name}; known: {known}") from None
+
+    def names(self) -> list[str]:
+        """The names it holds."""
+        return sorted(self._values)
+
+
+@dataclass(frozen=True)
+class Expression:
+    """A parsed expression.
+
+    Attributes:
+        source: The text as written in the file.
+        tree: Its syntax tree (validated).
+        names: Top-level names it reads (``t``, ``contact``, ``input``, ...).
+        attributes: ``(namespace, attribute)`` pairs it reads (``("input", "goal")``).
+
+    """
+
+    source: str
+    tree: ast.Expression
+    names: frozenset[str]
+    attributes: frozenset[tuple[str, str]]
+
+    def evaluate(self, env: Mapping[str, Any]) -> Any:
+        """Value of the expression in ``env`` (names to values or :class:`Namespace`).
+
+        Raises:
+            ExpressionError: Unknown name, or an operation that fails on the values.
+
+        """
+        try:
+            return _eval(self.tree.body, env)
+        except ExpressionError:
+            raise
+        except (TypeError, ValueError, IndexError, ZeroDivisionError) as exc:
+            raise ExpressionError(f"cannot evaluate {self.source!r}: {exc}") from None
+
+
+def parse(source: str, allowed_names: Iterable[str] | None = None) -> Expression:
+    """Parse and validate an expression.
+
+    Args:
+        source: The expression text.
+        allowed_names: Top-level names that may appear (``None``: any).
+
+    Raises:
+        ExpressionError: Syntax error, a forbidden construct, or a name not allowed.
+
+    """
+    if not isinstance(source, str) or not source.strip():
+        raise ExpressionError("expected a non-empty expression string")
+    try:
+        tree = ast.parse(source.strip(), mode="eval")
+    except SyntaxError as exc:
+        raise ExpressionError(f"syntax error in {source!r}: {exc.msg}") from None
+    names: set[str] = set()
+    attributes: set[tuple[str, str]] = set()
+    allowed = None if allowed_names is None else set(allowed_names)
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Call):
+            if not isinstance(node.func, ast.Name) or node.func.id not in FUNCTIONS:
+                raise ExpressionError(
+                    f"in {source!r}: only these functions may be called: "
+                    f"{', '.join(sorted(FUNCTIONS))}"
+                )
+            if node.keywords:
+                raise ExpressionError(f"in {source!r}: keyword arguments are not allowed")
+        elif isinstance(node, ast.Attribute):
+            if not isinstance(node.value, ast.Name):
+                if node.attr in ("x", "y", "z"):
+                    continue  # frame.trunk.z: a coordinate of a vector value
+                raise ExpressionError(f"in {source!r}: write attributes as namespace.name "
+                                      "(then .x, .y or .z)")
+            if node.attr.startswith("_"):
+                raise ExpressionError(f"in {source!r}: attribute {node.attr!r} is not allowed")
+            attributes.add((node.value.id, node.attr))
+        elif isinstance(node, ast.Name):
+            if node.id in FUNCTIONS or node.id in ("true", "false", "True", "False"):
+                continue
+            names.add(node.id)
+            if allowed is not None and node.id not in allowed:
+                raise ExpressionError(
+                    f"in {source!r}: unknown name {node.id!r}; known names: "
+                    f"{', '.join(sorted(allowed))}"
+                )
+        elif not isinstance(
+            node,
+            (
+                ast.Expression, ast.BoolOp, ast.BinOp, ast.UnaryOp, ast.Compare, ast.Constant,
+                ast.List, ast.Tuple, ast.Subscript, ast.Slice, ast.Load, ast.IfExp, ast.And, ast.Or,
+                *_BINARY, *_UNARY, *_COMPARE,
+            ),
+        ):
+            raise ExpressionError(f"in {source!r}: {type(node).__name__} is not allowed")
+        if isinstance(node, ast.Constant) and not isinstance(node.value, (int, float, bool, str)):
+            raise ExpressionError(f"in {source!r}: constant {node.value!r} is not allowed")
+    return Expression(source, tree, frozenset(names), frozenset(attributes))
+
+
+def _eval(node: ast.AST, env: Mapping[str, Any]) -> Any:
+    if isinstance(node, ast.Constant):
+        return node.value
+    if isinstance(node, ast.Name):
+        if node.id in ("true", "True"):
+            return True
+        if node.id in ("false", "False"):
+            return False
+        try:
+            return env[node.id]
+        except KeyError:
+            raise ExpressionError(f"unknown name {node.id!r}") from None
+    if isinstance(node, ast.Attribute):
+        base = _eval(node.value, env)
+        if isinstance(base, Namespace):
+            return base.get(node.attr)
+        if isinstance(base, np.ndarray) and node.attr in ("x", "y", "z") and base.size >= 3:
+            return float(base["xyz".index(node.attr)])
+        raise ExpressionError(f"{ast.unparse(node.value)} has no attribute {node.attr!r}")
+    if isinstance(node, (ast.List, ast.Tuple)):
+        return np.array([_eval(e, env) for e in node.elts], dtype=float)
+    if isinstance(node, ast.BinOp):
+        left, right = _eval(node.left, env), _eval(node.right, env)
+        return _BINARY[type(node.op)](_arr(left), _arr(right))
+    if isinstance(node, ast.UnaryOp):
+        return _UNARY[type(node.op)](_eval(node.operand, env))
+    if isinstance(node, ast.BoolOp):
+        if isinstance(node.op, ast.And):
+            return all(bool(_eval(v, env)) for v in node.values)
+        return any(bool(_eval(v, env)) for v in node.values)
+    if isinstance(node, ast.Compare):
+        left = _eval(node.left, env)
+        for op, comp in zip(node.ops, node.comparators):
+            right = _eval(comp, env)
+            if not bool(_COMPARE[type(op)](left, right)):
+                return False
+            left = right
+        return True
+    if isinstance(node, ast.IfExp):
+        return _eval(node.body if _eval(node.test, env) else node.orelse, env)
+    if isinstance(node, ast.Subscript):
+        base = _eval(node.value, env)
+        if isinstance(node.slice, ast.Slice):
+            lo, hi = (None if b is None else int(_eval(b, env))
+                      for b in (node.slice.lower, node.slice.upper))
+            if node.slice.step is not None:
+                raise ExpressionError("slices with a step are not allowed")
+            return np.asarray(base)[lo:hi]
+        index = _eval(node.slice, env)
+        return base[int(index)]
+    if isinstance(node, ast.Call):
+        fname = node.func.id  # type: ignore[attr-defined]
+        return FUNCTIONS[fname](*[_eval(a, env) for a in node.args])
+    raise ExpressionError(f"{type(node).__name__} is not allowed")  # pragma: no cover
+
+
+def _arr(x: Any) -> Any:
+    return np.asarray(x, dtype=float) if isinstance(x, (list, tuple)) else x

@@ -1,0 +1,204 @@
+"""Declarative pieces of the action layer: inputs, task specs, action primitives, phases.
+
+These are plain, frozen descriptions (the seed's behavior editor made
+declarative); :mod:`hqp.behaviors.loader` builds them from a TOML file and
+:class:`hqp.behaviors.behavior.Behavior` turns them into live tasks on a
+controller.
+"""
+
+from __future__ import annotations
+
+import enum
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from hqp.behaviors.expressions import Expression
+from hqp.tasks.base import Category
+
+
+@dataclass(frozen=True)
+class InputSpec:
+    """A runtime input (the seed's "in" parameters, given by a sensory layer).
+
+    Attributes:
+        name: Input name (read in expressions as ``input.<name>``).
+        shape: Shape of its value (``()`` for a scalar).
+        default: Value before any sample arrives (``None``: the input must be given).
+        interpolate: Interpolate linearly between timed samples (else zero-order hold).
+        description: Free text.
+
+    """
+
+    name: str
+    shape: tuple[int, ...]
+    default: np.ndarray | None = None
+    interpolate: bool = False
+    description: str = ""
+
+
+@dataclass(frozen=True)
+class TaskSpec:
+    """One control primitive of a behavior, as written in its file.
+
+    Attributes:
+        name: Task name (unique in the behavior; the controller's task name).
+        type: Task type (a key of :data:`hqp.behaviors.factory.TASK_TYPES`).
+        level: Priority level index, or a category (its default level).
+        weight: Weight inside its level.
+        frames: Frame-valued parameters (e.g. ``{"frame": "right_hand"}``).
+        params: Static parameters (gains, axes, ...).
+        goals: Goal-valued parameters as expressions (evaluated every step).
+
+    """
+
+    name: str
+    type: str
+    level: int | Category
+    weight: float = 1.0
+    frames: Mapping[str, str] = field(default_factory=dict)
+    params: Mapping[str, Any] = field(default_factory=dict)
+    goals: Mapping[str, Expression] = field(default_factory=dict)
+
+    def inputs(self) -> set[str]:
+        """Names of the runtime inputs its goals read."""
+        return {a for g in self.goals.values() for (ns, a) in g.attributes if ns == "input"}
+
+
+@dataclass(frozen=True)
+class ActionPrimitive:
+    """A named task set with a priority level per task (the seed's action primitive).
+
+    The seed's jumping table is the model: obstacle avoidance first, static
+    balance, then hip height / head orientation / right hand, then
+    orientations and arm posture. Goals written ``input.<name>`` are runtime
+    inputs.
+
+    Attributes:
+        name: Primitive name.
+        tasks: Its tasks (with their levels and parameters).
+
+    """
+
+    name: str
+    tasks: tuple[TaskSpec, ...]
+
+    @property
+    def task_names(self) -> tuple[str, ...]:
+        """Names of its tasks."""
+        return tuple(t.name for t in self.tasks)
+
+    @property
+    def runtime_inputs(self) -> tuple[str, ...]:
+        """Names of the runtime inputs its goals read (sorted)."""
+        return tuple(sorted(set().union(*(t.inputs() for t in self.tasks)))) if self.tasks else ()
+
+
+@dataclass(frozen=True)
+class Transition:
+    """A transition of the behavior's state machine.
+
+    Attributes:
+        to: Target phase.
+        when: Condition (an expression over sensed quantities, simulated time,
+            feasibility flags, inputs and planner outputs).
+
+    """
+
+    to: str
+    when: Expression
+
+
+@dataclass(frozen=True)
+class PhaseSpec:
+    """One phase (state) of a behavior.
+
+    Attributes:
+        name: Phase name.
+        action: The action primitive active in this phase.
+        contacts: Contacts that support the robot in this phase (others are released).
+        transitions: Outgoing transitions, checked in order; the first whose
+            condition holds fires.
+        goals: Goal overrides for this phase: task name -> goal parameter -> expression.
+        final: The phase may last until the end (no exit required).
+        safety: Phase entered when a watched task becomes infeasible (seed Figure 13).
+        watch: Tasks whose infeasibility sends the behavior to ``safety``.
+        ramp_time: Duration of the ramps of added tasks [s] (``None``: the behavior's).
+        unload_time: Unloading time of the contacts it releases [s] (``None``: the
+            behavior's).
+
+    """
+
+    name: str
+    action: ActionPrimitive
+    contacts: tuple[str, ...]
+    transitions: tuple[Transition, ...] = ()
+    goals: Mapping[str, Mapping[str, Expression]] = field(default_factory=dict)
+    final: bool = False
+    safety: str | None = None
+    watch: tuple[str, ...] = ()
+    ramp_time: float | None = None
+    unload_time: float | None = None
+
+
+@dataclass(frozen=True)
+class PlannerSpec:
+    """A trajectory generator feeding ``plan.*`` names (e.g. PlaCo's walk planners).
+
+    Attributes:
+        type: Planner type (``"placo_walk"``).
+        params: Its parameters.
+
+    """
+
+    type: str
+    params: Mapping[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class BehaviorSpec:
+    """A whole-body behavior: a state machine over action primitives.
+
+    Attributes:
+        name: Behavior name.
+        description: Free text.
+        initial: Initial phase.
+        phases: Phases by name, in file order.
+        tasks: Every task of the behavior by name.
+        inputs: Runtime inputs by name.
+        planner: Optional trajectory generator.
+        duration: Default run duration [s].
+        robot: Default robot.
+        ramp_time: Default ramp of added tasks [s].
+        unload_time: Time to unload a released contact [s].
+        path: File the behavior was read from (``None``: built in Python).
+        contact_frames: Declared contacts (name -> frame) as written in the file,
+            e.g. ``{"left_foot": "left_foot"}``; empty: the robot's own contacts.
+        poses: Captured poses by name: joint -> position [rad].
+        inputs_file: Default inputs file (JSON Lines), used when none is given.
+
+    """
+
+    name: str
+    description: str
+    initial: str
+    phases: Mapping[str, PhaseSpec]
+    tasks: Mapping[str, TaskSpec]
+    inputs: Mapping[str, InputSpec] = field(default_factory=dict)
+    planner: PlannerSpec | None = None
+    duration: float = 5.0
+    robot: str = "paper-humanoid"
+    ramp_time: float = 0.2
+    unload_time: float = 0.1
+    path: Path | None = None
+    contact_frames: Mapping[str, str] = field(default_factory=dict)
+    poses: Mapping[str, Mapping[str, float]] = field(default_factory=dict)
+    inputs_file: Path | None = None
+
+    def phase_enum(self) -> type[enum.Enum]:
+        """An :class:`enum.Enum` of the phases (values are the phase names, in file order)."""
+        cls_name = "".join(p.capitalize() for p in self.name.replace("-", "_").split("_")) + "Phase"
+        return enum.Enum(cls_name, [(p.upper().replace("-", "_"), p) for p in self.phases])
