@@ -195,3 +195,151 @@ def test_fixed_base_agrees_on_exactly_conflicting_levels(robot):
     hqp = hqp_solve(levels, M, h)
     assert not hqp.levels[1].satisfied and not law.levels[1].satisfied
     np.testing.assert_allclose(hqp.x, law.qdd, atol=1e-8 * max(1.0, np.abs(law.qdd).max()))
+
+
+# -- controllers on the same task objects ---------------------------------------------------
+
+
+def standing_stack(model, robot, q0, *, full_posture: bool):
+    """Paper-humanoid on two feet: dynamics, contacts, CoG, right hand, (partial) posture."""
+    from hqp.stack import Stack
+    from hqp.tasks.com import CoMTask
+    from hqp.tasks.contact import Contact
+    from hqp.tasks.dynamics import FloatingBaseDynamics
+    from hqp.tasks.position import PositionTask
+    from hqp.tasks.posture import PostureTask
+
+    model.update(q0, np.zeros(model.nv))
+    st = Stack()
+    st.add(FloatingBaseDynamics())
+    for c in robot.contacts:
+        st.add_contact(Contact(c.name, c.frame, c.kind, half_length=c.half_length,
+                               half_width=c.half_width, mu=c.friction), limits=False)
+    com = CoMTask(model, kp=50.0)
+    com.set_goal(model.com + np.array([0.02, -0.01, -0.03]))
+    st.add(com)
+    hand = PositionTask(model, robot.hands[1], kp=40.0)
+    hand.set_goal(model.frame_placement(robot.hands[1]).translation + [0.1, -0.05, 0.1])
+    st.add(hand)
+    # The full posture conflicts with the support and the tasks above; the head joints do not.
+    joints = model.joint_names if full_posture else model.joint_names[-2:]
+    post = PostureTask(model, joints, kp=30.0)
+    post.set_configuration(q0, model)
+    st.add(post)
+    return st
+
+
+@pytest.fixture(scope="module")
+def paper_humanoid():
+    robots = pytest.importorskip("hqp.robots")
+    return robots.load("paper-humanoid")
+
+
+@pytest.mark.parametrize("full_posture", [False, True], ids=["feasible", "posture-conflict"])
+def test_floating_base_statement_on_two_feet(paper_humanoid, full_posture):
+    """Module docstring, statements 1-3, through both controllers on the same tasks.
+
+    1. every feasible level reaches the same task accelerations;
+    2. HQP with final_metric = M, final_target = -M^-1 h on qdd returns the law's qdd;
+    3. HQP with the metric of ``floating_base_metric`` returns the law's qdd, f and tau.
+    """
+    from hqp.controller import WholeBodyController
+    from hqp.model import RobotState
+    from hqp.nullspace import NullSpaceController, floating_base_metric
+    from hqp.tasks.dynamics import torque_map
+
+    robot = paper_humanoid
+    rng = np.random.default_rng(30)
+    q0 = robot.q_standing.copy()
+    for trial in range(3):
+        m_law, m_hqp = robot.model(), robot.model()
+        law = NullSpaceController(m_law, stack=standing_stack(m_law, robot, q0,
+                                                              full_posture=full_posture),
+                                  internal_forces="none")
+        hqp = WholeBodyController(m_hqp, stack=standing_stack(m_hqp, robot, q0,
+                                                              full_posture=full_posture))
+        q = q0.copy()
+        q[7:] += rng.normal(scale=0.03, size=m_law.na)
+        v = rng.normal(scale=0.05, size=m_law.nv)
+        state = RobotState(q, v)
+        cmd = law.step(state, 0.0)
+        assert not cmd.safe_mode
+        sol = law.last_law
+        nv, n = m_law.nv, law.layout.n
+        # 2. final_metric = M, final_target = -M^-1 h on the qdd block
+        W = np.zeros((n, n))
+        W[:nv, :nv] = m_law.M
+        target = np.zeros(n)
+        target[:nv] = -np.linalg.solve(m_law.M, m_law.h)
+        hqp.final_metric, hqp.final_target = W, target
+        c2 = hqp.step(state, 0.0)
+        scale = max(1.0, np.abs(cmd.qdd).max())
+        np.testing.assert_allclose(c2.qdd, cmd.qdd, rtol=0, atol=1e-8 * scale)
+        # 1. same task accelerations for every feasible level (and the same report)
+        for (J, a), lv in zip(law.last_problem.levels, sol.levels):
+            if lv.satisfied:
+                np.testing.assert_allclose(J @ c2.qdd, a, atol=1e-7 * max(1.0, abs(a).max()))
+        for s_law, s_hqp in zip(cmd.report.tasks, c2.report.tasks):
+            assert (s_law.name, s_law.status) == (s_hqp.name, s_hqp.status)
+        if full_posture:
+            assert cmd.report["posture"].status.value == "conflict"
+        else:
+            assert cmd.report.feasible, cmd.report
+        # 3. the metric T^T (Phi + P_null) T reproduces qdd, wrenches and torques
+        T, t0 = torque_map(m_law, law.layout)
+        hqp.final_metric, hqp.final_target = floating_base_metric(sol, T, t0)
+        c3 = hqp.step(state, 0.0)
+        tscale = max(1.0, np.abs(sol.tau).max())
+        np.testing.assert_allclose(c3.qdd, cmd.qdd, rtol=0, atol=1e-8 * scale)
+        np.testing.assert_allclose(T @ hqp.last_x + t0, sol.tau, rtol=0, atol=1e-8 * tscale)
+        for name, w in cmd.wrenches.items():
+            np.testing.assert_allclose(c3.wrenches[name], w, rtol=0, atol=1e-7 * tscale)
+        # The default HQP tie-break (minimum norm of x) is another point of the optimal set:
+        # other torques always (internal forces), other accelerations where redundancy is left.
+        hqp.final_metric = hqp.final_target = None
+        c0 = hqp.step(state, 0.0)
+        assert np.linalg.norm(c0.tau - cmd.tau) > 0.1  # [N m]
+        if not full_posture:
+            assert np.linalg.norm(c0.qdd - cmd.qdd) > 1e-2
+
+
+def ur5():
+    return RobotModel.from_urdf(ERD / "ur_description/urdf/ur5_robot.urdf", floating_base=False)
+
+
+def test_singular_task_reported_by_both_controllers():
+    """An arm stretching out: the law's smallest eigenvalue of Lambda^-1 and HQP's smallest
+    projected singular value both go to zero, and both controllers flag the task singular."""
+    from hqp.controller import Feasibility, WholeBodyController
+    from hqp.model import RobotState
+    from hqp.nullspace import NullSpaceController
+    from hqp.stack import Stack
+    from hqp.tasks.position import PositionTask
+    from hqp.tasks.posture import PostureTask
+
+    eigs, sigmas, statuses = [], [], []
+    elbows = [0.8, 0.4, 0.2, 0.1, 0.05, 0.0]
+    for elbow in elbows:
+        q = np.array([0.3, -1.0, elbow, -0.5, 0.4, 0.1])
+        cmds = []
+        for cls in (NullSpaceController, WholeBodyController):
+            model = ur5()
+            model.update(q, np.zeros(model.nv))
+            st = Stack()
+            wrist = PositionTask(model, "wrist_1_joint", name="wrist", kp=50.0)
+            wrist.set_goal(model.frame_placement("wrist_1_joint").translation)  # hold: feasible
+            st.add(wrist)
+            post = PostureTask(model, kp=10.0)
+            post.set_configuration(np.zeros(6), model)
+            st.add(post)
+            cmds.append(cls(model, stack=st).step(RobotState(q, np.zeros(6)), 0.0))
+        law, hqp = cmds
+        eigs.append(law.report["wrist"].sigma_min)
+        sigmas.append(hqp.report["wrist"].sigma_min)
+        statuses.append((law.report["wrist"].status, hqp.report["wrist"].status))
+    eigs, sigmas = np.array(eigs), np.array(sigmas)
+    assert np.all(np.diff(eigs) < 0) and np.all(np.diff(sigmas) < 0)
+    # Both vanish at the stretched arm (an eigenvalue ~ sigma^2 of the whitened Jacobian).
+    assert eigs[-1] < 1e-10 * eigs[0] and sigmas[-1] < 1e-8 * sigmas[0]
+    assert statuses[0] == (Feasibility.SATISFIED, Feasibility.SATISFIED)
+    assert statuses[-1] == (Feasibility.SINGULAR, Feasibility.SINGULAR)
