@@ -7,7 +7,9 @@ mutable (moving obstacles): :meth:`World.move` places an obstacle,
 collision primitives (:mod:`hqp.tasks.collision`) read spheres and capsules
 (analytic distances with smooth Jacobians); boxes are for scenes (tables,
 walls) and are not used by the distance rows. :meth:`World.mjcf_geoms` writes
-the obstacles as MJCF ``<geom>`` elements for a MuJoCo ``<worldbody>``.
+the obstacles as MJCF ``<geom>`` elements for a MuJoCo ``<worldbody>``;
+:meth:`World.mjcf_bodies` writes them as mocap bodies (one per obstacle, named
+like it) whose positions a simulator updates from :meth:`World.positions`.
 """
 
 from __future__ import annotations
@@ -65,10 +67,11 @@ class Sphere:
         """Move by ``offset`` ``(3,)`` [m]."""
         self.position = self.position + offset
 
-    def mjcf(self, collide: bool) -> str:
-        """MJCF geom element."""
+    def mjcf(self, collide: bool, origin: np.ndarray | None = None) -> str:
+        """MJCF geom element (positions relative to ``origin``, default the world's)."""
+        o = np.zeros(3) if origin is None else origin
         return (
-            f'<geom name="{self.name}" type="sphere" pos="{_fmt(self.position)}" '
+            f'<geom name="{self.name}" type="sphere" pos="{_fmt(self.position - o)}" '
             f'size="{self.radius:.6g}" rgba="{_fmt(self.rgba)}"{_contact_attrs(collide)}/>'
         )
 
@@ -116,11 +119,12 @@ class Capsule:
         self.point_a = self.point_a + offset
         self.point_b = self.point_b + offset
 
-    def mjcf(self, collide: bool) -> str:
-        """MJCF geom element."""
+    def mjcf(self, collide: bool, origin: np.ndarray | None = None) -> str:
+        """MJCF geom element (positions relative to ``origin``, default the world's)."""
+        o = np.zeros(3) if origin is None else origin
         return (
             f'<geom name="{self.name}" type="capsule" '
-            f'fromto="{_fmt(self.point_a)} {_fmt(self.point_b)}" size="{self.radius:.6g}" '
+            f'fromto="{_fmt(self.point_a - o)} {_fmt(self.point_b - o)}" size="{self.radius:.6g}" '
             f'rgba="{_fmt(self.rgba)}"{_contact_attrs(collide)}/>'
         )
 
@@ -161,11 +165,12 @@ class Box:
         """Move by ``offset`` ``(3,)`` [m]."""
         self.position = self.position + offset
 
-    def mjcf(self, collide: bool) -> str:
-        """MJCF geom element (orientation as ``xyaxes``)."""
+    def mjcf(self, collide: bool, origin: np.ndarray | None = None) -> str:
+        """MJCF geom element (orientation as ``xyaxes``; position relative to ``origin``)."""
         R = self.rotation
+        o = np.zeros(3) if origin is None else origin
         return (
-            f'<geom name="{self.name}" type="box" pos="{_fmt(self.position)}" '
+            f'<geom name="{self.name}" type="box" pos="{_fmt(self.position - o)}" '
             f'size="{_fmt(self.half_extents)}" xyaxes="{_fmt(R[:, 0])} {_fmt(R[:, 1])}" '
             f'rgba="{_fmt(self.rgba)}"{_contact_attrs(collide)}/>'
         )
@@ -279,3 +284,23 @@ class World:
 
         """
         return [obstacle.mjcf(collide) for obstacle in self._obstacles.values()]
+
+    def mjcf_bodies(self, collide: bool = False) -> list[str]:
+        """MJCF mocap ``<body>`` strings (one per obstacle, named like it), for moving obstacles.
+
+        Each body sits at the obstacle's centre and holds its geom; a simulator
+        moves it by writing :meth:`positions` into ``MjData.mocap_pos``.
+
+        Args:
+            collide: Whether MuJoCo collides with them (default: visual only).
+
+        """
+        return [
+            f'<body name="{o.name}" mocap="true" pos="{_fmt(o.position)}">'
+            f"{o.mjcf(collide, origin=o.position)}</body>"
+            for o in self._obstacles.values()
+        ]
+
+    def positions(self) -> dict[str, np.ndarray]:
+        """Centre ``(3,)`` [m] of every obstacle by name (for mocap bodies)."""
+        return {name: o.position.copy() for name, o in self._obstacles.items()}

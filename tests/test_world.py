@@ -75,3 +75,22 @@ def test_world_errors() -> None:
         world.move("ball", position=[0, 0])
     with pytest.raises(HQPError, match="dt"):
         world.step(-1.0)
+
+
+def test_mocap_bodies_follow_moving_obstacles() -> None:
+    world = scene()
+    xml = "<mujoco><worldbody>" + "".join(world.mjcf_bodies()) + "</worldbody></mujoco>"
+    model = mujoco.MjModel.from_xml_string(xml)
+    data = mujoco.MjData(model)
+    world.step(1.0)
+    for name, position in world.positions().items():
+        data.mocap_pos[model.body(name).mocapid[0]] = position
+    mujoco.mj_forward(model, data)
+    ball = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, "ball")
+    pole = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, "pole")
+    table = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, "table")
+    np.testing.assert_allclose(data.geom_xpos[ball], [0.5, 0.3, 1.0], atol=1e-6)
+    np.testing.assert_allclose(data.geom_xpos[pole], [1.0, -0.5, 0.75], atol=1e-6)
+    np.testing.assert_allclose(data.geom_xpos[table], [0.8, 0.0, 0.7], atol=1e-6)
+    np.testing.assert_allclose(data.geom_xmat[table].reshape(3, 3), world.get("table").rotation,
+                               atol=1e-5)
