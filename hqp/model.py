@@ -226,6 +226,9 @@ class RobotModel:
         M = data.M
         self.M = np.triu(M) + np.triu(M, 1).T
         self.h = pin.nonLinearEffects(model, data, q, v).copy()
+        # pinocchio 3.8 reads data.vcom[0] left by the previous step's centerOfMass in
+        # computeCentroidalMapTimeVariation (wrong dAg from the second update on): reset it.
+        data.vcom[0] = np.zeros(3)
         pin.computeCentroidalMapTimeVariation(model, data, q, v)
         self.centroidal_matrix = data.Ag.copy()
         self.centroidal_drift = data.dAg @ v
