@@ -126,6 +126,11 @@ class CentroidalMomentumTask(Task):
             raise InvalidInput(f"{self.where()}: a trajectory needs a sample(t) method")
         self._trajectory = trajectory
 
+    @property
+    def trajectory(self) -> Trajectory | None:
+        """The momentum trajectory being followed, if any."""
+        return self._trajectory
+
     def value(self, state: RobotModel) -> np.ndarray:
         """Return the selected momentum ``S A_g v`` ``(k,)``."""
         return state.centroidal_matrix[self.components] @ state.v
