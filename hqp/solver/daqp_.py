@@ -25,7 +25,6 @@ class DaqpBackend(QPBackend):
 
     name = "daqp"
     needs_pd = True
-    needs_independent_eq = True
 
     def solve(self, slot, H, g, E, e, C, lo, up):  # noqa: D102 - documented in the base
         G, h = one_sided(C, lo, up)

@@ -38,9 +38,9 @@ For level ``k`` with ``A_k Z``, ``C_k Z``:
 level's slacks, earlier levels held as constraints: equality rows at their
 values at the current point (which lies in their optimal set, so redundant
 rows stay consistent under the QP tolerance) and inequality rows with bounds
-widened to contain their optimal violation (``C x - w* in [l, u]``). Backends
-that need linearly independent equalities (active-set solvers) receive only
-the independent rows.
+widened to contain their optimal violation (``C x - w* in [l, u]``). Only
+linearly independent equality rows are held (active-set backends need it, and
+redundant rows mislead ProxQP's infeasibility detection).
 Same backend, same persistent per-level QPs and warm starts.
 """
 
@@ -52,6 +52,7 @@ from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
+from scipy.linalg import lapack, solve_triangular
 
 from hqp.errors import InvalidInput, InvalidLevel, SolverFailure, UnknownName, check_array
 from hqp.solver.backend import QPBackend, make_backend
@@ -59,6 +60,13 @@ from hqp.solver.level import CheckedLevel, Level, check_level
 from hqp.solver.solution import ROW_TOL, SATISFIED_COST, LevelReport, Solution
 
 logger = logging.getLogger(__name__)
+
+_dgeqp3 = lapack.dgeqp3
+_dgeqrf = lapack.dgeqrf
+_dorgqr = lapack.dorgqr
+_solve_triangular = solve_triangular
+_ZERO = np.zeros(0)
+_NO_ROWS = np.zeros(0, dtype=int)
 
 ALGORITHMS = ("basis", "cascade")
 """Names of the lexicographic algorithms."""
@@ -142,7 +150,8 @@ def _final_levels(
     out: list[tuple[CheckedLevel, int]] = []
     if final_metric is None:
         if target is not None:
-            out.append((CheckedLevel(eye, target, empty, none, none, "final"), _Internal.NORM))
+            out.append((CheckedLevel(eye, target, empty, none, none, "final", a_scale=1.0),
+                        _Internal.NORM))
     else:
         M = check_array(final_metric, (n, n), "final_metric")
         scale = max(1.0, float(np.abs(M).max()))
@@ -152,8 +161,11 @@ def _final_levels(
             raise InvalidInput("final_metric: not positive semidefinite")
         R = _metric_sqrt(0.5 * (M + M.T))
         t = np.zeros(n) if target is None else target
-        out.append((CheckedLevel(R, R @ t, empty, none, none, "final"), _Internal.METRIC))
-    out.append((CheckedLevel(eye, np.zeros(n), empty, none, none, "norm"), _Internal.NORM))
+        out.append((CheckedLevel(R, R @ t, empty, none, none, "final",
+                                 a_scale=float(np.abs(R).max()) if R.size else 0.0),
+                    _Internal.METRIC))
+    out.append((CheckedLevel(eye, np.zeros(n), empty, none, none, "norm", a_scale=1.0),
+                _Internal.NORM))
     return out
 
 
@@ -162,16 +174,11 @@ def _dist(cx: np.ndarray, lo: np.ndarray, up: np.ndarray) -> np.ndarray:
     return np.where(cx > up, cx - up, np.where(cx < lo, cx - lo, 0.0))
 
 
-def _bound_tol(lo: np.ndarray, up: np.ndarray, rel: float) -> tuple[np.ndarray, np.ndarray]:
-    """Per-row tolerances ``rel * max(1, |bound|)`` (finite where the bound is infinite)."""
-    tl = rel * np.maximum(1.0, np.abs(np.where(np.isfinite(lo), lo, 0.0)))
-    tu = rel * np.maximum(1.0, np.abs(np.where(np.isfinite(up), up, 0.0)))
-    return tl, tu
-
-
-def _within(cx: np.ndarray, lo: np.ndarray, up: np.ndarray) -> bool:
-    tl, tu = _bound_tol(lo, up, FEAS_TOL)
-    return bool(np.all(cx >= lo - tl) and np.all(cx <= up + tu))
+def _within(
+    cx: np.ndarray, lo: np.ndarray, up: np.ndarray, lo_s: np.ndarray, up_s: np.ndarray
+) -> bool:
+    """Whether ``lo - tol <= cx <= up + tol`` with ``tol = FEAS_TOL * scale``."""
+    return bool((cx >= lo - FEAS_TOL * lo_s).all() and (cx <= up + FEAS_TOL * up_s).all())
 
 
 def _mth_singular(s: np.ndarray, m: int, r: int, thr: float) -> float:
@@ -293,53 +300,49 @@ class HierarchicalSolver:
         x = np.zeros(n)
         Z: np.ndarray | None = None  # None: identity
         r = n
-        G = np.zeros((0, n))
+        G = np.zeros((0, n))  # carried inequality rows
         gl = np.zeros(0)
         gu = np.zeros(0)
-        sigmas: list[float] = []
+        gls = np.zeros(0)  # their tolerance scales
+        gus = np.zeros(0)
         pending: list[tuple[CheckedLevel, Any, Any, Any]] = []
         times: list[float] = []
         qp_count = 0
+        clock = time.perf_counter
         for k, (lv, kind) in enumerate(all_levels):
-            t0 = time.perf_counter()
+            t0 = clock()
             A, b, C = lv.A, lv.b, lv.C
             me, mi = A.shape[0], C.shape[0]
             if r == 0 or me + mi == 0:
                 if kind == _Internal.NONE:
                     pending.append((lv, None, None, None))
-                times.append(time.perf_counter() - t0)
+                times.append(clock() - t0)
                 continue
             Zb = Z
             carried = G.shape[0] > 0
             Ak = A if Z is None else A @ Z
             bk = b - A @ x
-            # 1. least squares on the equality rows
-            svd_a = None
+            # 1. least squares on the equality rows (pivoted QR of the projected matrix)
+            fact = None
             if kind == _Internal.NORM:
-                # A = I and Z orthonormal: (I Z)^+ = Z^T, nothing left free afterwards.
+                # A = I and Z orthonormal: (I Z)^+ = Z^T; nothing is left free afterwards.
                 y = bk if Z is None else Z.T @ bk
-                nullA = np.zeros((0, r))
-                rank_a = r
+                null = np.zeros((r, 0))
             elif me:
-                U, s, Vt = np.linalg.svd(Ak, full_matrices=True)
-                scale = max(float(s[0]) if s.size else 0.0, float(np.abs(A).max()))
-                thr = rank_tol * scale
-                rank_a = int(np.count_nonzero(s > thr))
-                y = Vt[:rank_a].T @ ((U[:, :rank_a].T @ bk) / s[:rank_a])
-                nullA = Vt[rank_a:]
-                svd_a = (s, thr)
+                fact = _PivotedQR(Ak, rank_tol, lv.a_scale)
+                y = fact.lstsq(bk)
+                null = fact.null()
             else:
-                y = np.zeros(r)
-                nullA = None
-                rank_a = 0
-            xl = x + (y if Z is None else Z @ y)
+                y = None  # zero
+                null = None
+            xl = x.copy() if y is None else x + (y if Z is None else Z @ y)
             # 2. does the least-squares point satisfy the inequalities?
             feasible = True
             if mi:
                 cx = C @ xl
-                feasible = _within(cx, lv.lower, lv.upper)
+                feasible = _within(cx, lv.lower, lv.upper, lv.lo_scale, lv.up_scale)
             if feasible and carried:
-                feasible = _within(G @ xl, gl, gu)
+                feasible = _within(G @ xl, gl, gu, gls, gus)
             violated = None
             if not feasible:
                 # 3. QP in the reduced coordinates (and the level's slacks)
@@ -347,85 +350,76 @@ class HierarchicalSolver:
                 Gk = G if Z is None else G @ Z
                 gx = G @ x
                 H11 = Ak.T @ Ak
-                g1 = -(Ak.T @ bk)
+                g1 = Ak.T @ bk
+                np.negative(g1, out=g1)
                 if mi == 0:
-                    v, ok = backend.solve(k, H11, g1, None, None,
+                    y, ok = backend.solve(k, H11, g1, None, None,
                                           Gk if carried else None,
                                           gl - gx if carried else None,
                                           gu - gx if carried else None)
-                    y = v
                 else:
                     Ck = C if Z is None else C @ Z
-                    cx0 = C @ x
                     nv = r + mi
+                    p = G.shape[0]
                     H = np.zeros((nv, nv))
                     H[:r, :r] = H11
-                    H[np.arange(r, nv), np.arange(r, nv)] = 1.0
+                    dg = np.arange(r, nv)
+                    H[dg, dg] = 1.0
                     g = np.zeros(nv)
                     g[:r] = g1
-                    p = G.shape[0]
                     Cq = np.zeros((mi + p, nv))
                     Cq[:mi, :r] = Ck
-                    Cq[np.arange(mi), np.arange(r, nv)] = -1.0
-                    Cq[mi:, :r] = Gk
-                    lo = np.concatenate([lv.lower - cx0, gl - gx])
-                    up = np.concatenate([lv.upper - cx0, gu - gx])
+                    Cq[np.arange(mi), dg] = -1.0
+                    if carried:
+                        Cq[mi:, :r] = Gk
+                    cx0 = C @ x
+                    lo = np.concatenate((lv.lower - cx0, gl - gx))
+                    up = np.concatenate((lv.upper - cx0, gu - gx))
                     v, ok = backend.solve(k, H, g, None, None, Cq, lo, up)
                     y = v[:r]
                 if not ok:
                     logger.debug("level %d: backend %s did not converge", k, backend.name)
-                if not np.all(np.isfinite(y)):
+                if not np.isfinite(y).all():
                     raise SolverFailure(
                         f"level {k}: backend {backend.name!r} returned a non-finite solution"
                     )
                 xl = x + (y if Z is None else Z @ y)
                 if mi:
                     cx = C @ xl
-                    d = _dist(cx, lv.lower, lv.upper)
-                    tl, tu = _bound_tol(lv.lower, lv.upper, FEAS_TOL)
-                    violated = (d > tu) | (d < -tl)
-                    if not violated.any():
-                        violated = None
-            # 4. shrink the basis: equality rows and violated rows are fixed
+                    viol = (cx > lv.upper + FEAS_TOL * lv.up_scale) | (
+                        cx < lv.lower - FEAS_TOL * lv.lo_scale)
+                    if viol.any():
+                        violated = viol
+            # 4. shrink the basis: equality rows and violated rows become equalities
             if violated is not None:
-                Ck = C if Z is None else C @ Z
-                E = np.concatenate([Ak, Ck[violated]]) if me else Ck[violated]
-                U2, s2, Vt2 = np.linalg.svd(E, full_matrices=True)
-                scale = max(float(s2[0]) if s2.size else 0.0,
-                            float(np.abs(A).max()) if me else 0.0,
-                            float(np.abs(C[violated]).max()))
-                thr2 = rank_tol * scale
-                rank_e = int(np.count_nonzero(s2 > thr2))
-                null = Vt2[rank_e:]
-            else:
-                null = nullA
+                Cv = C[violated]
+                E = np.concatenate((Ak, Cv if Z is None else Cv @ Z)) if me else (
+                    Cv if Z is None else Cv @ Z)
+                scale = max(lv.a_scale, float(np.abs(Cv).max()))
+                null = _PivotedQR(E, rank_tol, scale).null()
             x = xl
             if null is not None:
-                Z = null.T if Z is None else Z @ null.T
+                Z = null if Z is None else Z @ null
                 r = Z.shape[1]
-            # carried inequality rows: widen to contain x (absorbs the QP tolerance)
-            if carried:
+            # carried rows: widen to contain x (absorbs the QP tolerance); add this level's
+            if carried and not feasible:
                 gx = G @ x
                 np.minimum(gl, gx, out=gl)
                 np.maximum(gu, gx, out=gu)
             if mi:
-                keep = np.ones(mi, dtype=bool) if violated is None else ~violated
-                keep &= np.isfinite(lv.lower) | np.isfinite(lv.upper)
+                keep = lv.bounded if violated is None else lv.bounded & ~violated
                 if keep.any():
                     ck = cx[keep]
-                    G = np.concatenate([G, C[keep]])
-                    gl = np.concatenate([gl, np.minimum(lv.lower[keep], ck)])
-                    gu = np.concatenate([gu, np.maximum(lv.upper[keep], ck)])
+                    G = np.concatenate((G, C[keep]))
+                    gl = np.concatenate((gl, np.minimum(lv.lower[keep], ck)))
+                    gu = np.concatenate((gu, np.maximum(lv.upper[keep], ck)))
+                    gls = np.concatenate((gls, lv.lo_scale[keep]))
+                    gus = np.concatenate((gus, lv.up_scale[keep]))
             if kind == _Internal.NONE:
-                pending.append((lv, Ak, Zb, svd_a))
-            times.append(time.perf_counter() - t0)
+                pending.append((lv, Ak, Zb, fact))
+            times.append(clock() - t0)
         # sigma_min at the solution (its active rows), from the projections above
-        for lv, Ak, Zb, svd_a in pending:
-            if Ak is None:
-                m = lv.m_eq + (int(np.count_nonzero(_active_rows(lv, lv.C @ x))) if lv.m_in else 0)
-                sigmas.append(0.0 if m else float("inf"))
-            else:
-                sigmas.append(_sigma_level(lv, Ak, Zb, x, svd_a, rank_tol))
+        sigmas = [_sigma_level(lv, Ak, Zb, x, fact, rank_tol) for lv, Ak, Zb, fact in pending]
         return x, sigmas, qp_count, times
 
     # ---------------------------------------------------------------- cascade
@@ -433,9 +427,9 @@ class HierarchicalSolver:
         self, all_levels: list[tuple[CheckedLevel, int]], n: int
     ) -> tuple[np.ndarray, int, list[float]]:
         backend = self._backend
-        independent = getattr(backend, "needs_independent_eq", False)
         x = np.zeros(n)
-        E = np.zeros((0, n))  # held equality rows of earlier levels
+        E = np.zeros((0, n))  # held equality rows of earlier levels (independent)
+        Q = np.zeros((n, 0))  # orthonormal basis of their span
         G = np.zeros((0, n))  # held inequality rows of earlier levels
         gl = np.zeros(0)
         gu = np.zeros(0)
@@ -482,10 +476,9 @@ class HierarchicalSolver:
                 np.minimum(gl, gx, out=gl)
                 np.maximum(gu, gx, out=gu)
             if me:
-                E = _append_independent(E, A, self.rank_tol) if independent else (
-                    np.concatenate([E, A]))
+                E, Q = _append_independent(E, Q, A)
             if mi:
-                keep = np.isfinite(lv.lower) | np.isfinite(lv.upper)
+                keep = lv.bounded
                 cx = C[keep] @ x
                 G = np.concatenate([G, C[keep]])
                 gl = np.concatenate([gl, np.minimum(lv.lower[keep], cx)])
@@ -536,32 +529,120 @@ def solve(
 
 def _active_rows(lv: CheckedLevel, cx: np.ndarray) -> np.ndarray:
     """Rows on, or beyond, a bound (report tolerance :data:`ROW_TOL`)."""
-    tl, tu = _bound_tol(lv.lower, lv.upper, ROW_TOL)
-    return (cx >= lv.upper - tu) | (cx <= lv.lower + tl)
+    return (cx >= lv.upper - ROW_TOL * lv.up_scale) | (cx <= lv.lower + ROW_TOL * lv.lo_scale)
 
 
 def _sigma_level(
     lv: CheckedLevel,
-    Ak: np.ndarray,
+    Ak: np.ndarray | None,
     Z: np.ndarray | None,
     x: np.ndarray,
-    svd_a: tuple[np.ndarray, float] | None,
+    fact: _PivotedQR | None,
     rank_tol: float,
 ) -> float:
-    """``sigma_min`` of one level: the m-th singular value of ``[A; C_active] Z``."""
-    r = Ak.shape[1]
+    """``sigma_min`` of one level: the m-th singular value of ``[A; C_active] Z``.
+
+    ``Ak`` is ``A Z`` (``None`` when no direction was left free: then 0, or
+    ``inf`` for a level with no equality and no active row).
+    """
     me = lv.m_eq
     act = _active_rows(lv, lv.C @ x) if lv.m_in else None
-    if act is not None and act.any():
+    n_act = 0 if act is None else int(np.count_nonzero(act))
+    m = me + n_act
+    if m == 0:
+        return float("inf")
+    if Ak is None:
+        return 0.0
+    r = Ak.shape[1]
+    if m > r:
+        return 0.0
+    if n_act:
         Ca = lv.C[act]
-        M = np.concatenate([Ak, Ca if Z is None else Ca @ Z])
-        s = np.linalg.svd(M, compute_uv=False)
-        scale = max(float(s[0]) if s.size else 0.0, float(np.abs(Ca).max()),
-                    float(np.abs(lv.A).max()) if me else 0.0)
-        return _mth_singular(s, M.shape[0], r, rank_tol * scale)
-    if svd_a is not None:
-        return _mth_singular(svd_a[0], me, r, svd_a[1])
-    return float("inf")
+        M = np.concatenate((Ak, Ca if Z is None else Ca @ Z))
+        scale = max(lv.a_scale, float(np.abs(Ca).max()))
+        s = _singular_values(M)
+    elif fact is not None:
+        s = fact.singular_values()
+        scale = lv.a_scale
+    else:
+        s = _singular_values(Ak)
+        scale = lv.a_scale
+    return _mth_singular(s, m, r, rank_tol * max(float(s[0]) if s.size else 0.0, scale))
+
+
+def _singular_values(M: np.ndarray) -> np.ndarray:
+    """Singular values of an ``(m, r)`` matrix with ``m <= r``, largest first.
+
+    Computed from the ``(m, m)`` triangular factor of ``M^T`` (same singular
+    values), which is much cheaper than an SVD of ``M`` when ``m << r``.
+    """
+    m = M.shape[0]
+    if m == 0:
+        return _ZERO
+    qr, _tau, _work, info = _dgeqrf(np.asfortranarray(M.T))
+    return np.linalg.svd(np.triu(qr[:m, :m]), compute_uv=False)
+
+
+class _PivotedQR:
+    """Rank-revealing QR of a projected level matrix ``M`` ``(m, r)``: ``M^T P = Q R``.
+
+    Rank: the number of ``|R_ii|`` above ``rank_tol * max(|R_00|, scale)``;
+    ``|R_00|`` is the largest row norm of ``M``, within ``sqrt(m)`` of its
+    largest singular value, and ``scale`` the largest entry of the level's
+    unprojected rows (so rows that the levels above already fixed count as zero).
+    """
+
+    __slots__ = ("M", "qr", "piv", "tau", "rank", "_Q")
+
+    def __init__(self, M: np.ndarray, rank_tol: float, scale: float) -> None:
+        self.M = M
+        qr, jpvt, tau, _work, info = _dgeqp3(np.asfortranarray(M.T))
+        self.qr = qr
+        self.piv = jpvt - 1
+        self.tau = tau
+        d = np.abs(np.diagonal(qr))
+        top = max(float(d[0]) if d.size else 0.0, scale)
+        self.rank = int(np.count_nonzero(d > rank_tol * top))
+        self._Q: np.ndarray | None = None
+
+    def Q(self) -> np.ndarray:
+        """Full orthogonal factor ``(r, r)``."""
+        if self._Q is None:
+            r, m = self.qr.shape
+            if m >= r:
+                a = np.array(self.qr[:, :r], order="F")
+                tau = self.tau
+            else:
+                a = np.zeros((r, r), order="F")
+                a[:, :m] = self.qr
+                tau = np.zeros(r)
+                tau[: self.tau.size] = self.tau
+            self._Q = _dorgqr(a, tau)[0]
+        return self._Q
+
+    def null(self) -> np.ndarray:
+        """Orthonormal basis ``(r, r - rank)`` of the null space of ``M``."""
+        return self.Q()[:, self.rank:]
+
+    def lstsq(self, rhs: np.ndarray) -> np.ndarray:
+        """Solve ``M y = rhs`` in the least-squares sense (minimum norm up to the rank cut)."""
+        k = self.rank
+        r = self.qr.shape[0]
+        if k == 0:
+            return np.zeros(r)
+        L = self.qr[:k, :].T  # (m, k): R[:k]^T, lower trapezoidal
+        rp = rhs[self.piv]
+        if L.shape[0] == k:
+            z = _solve_triangular(L, rp, lower=True, check_finite=False)
+        else:
+            z = np.linalg.lstsq(np.tril(L), rp, rcond=None)[0]
+        return self.Q()[:, :k] @ z
+
+    def singular_values(self) -> np.ndarray:
+        """Singular values of ``M`` (those of ``R``), largest first."""
+        m = self.qr.shape[1]
+        R = np.triu(self.qr[: min(m, self.qr.shape[0]), :])
+        return np.linalg.svd(R, compute_uv=False)
 
 
 def _report(lv: CheckedLevel, x: np.ndarray, sigma: float) -> LevelReport:
@@ -569,13 +650,16 @@ def _report(lv: CheckedLevel, x: np.ndarray, sigma: float) -> LevelReport:
     res = lv.A @ x - lv.b
     if lv.m_in:
         cx = lv.C @ x
-        viol = _dist(cx, lv.lower, lv.upper)
-        tl, tu = _bound_tol(lv.lower, lv.upper, ROW_TOL)
-        active = np.flatnonzero((cx >= lv.upper - tu) | (cx <= lv.lower + tl))
-        violated = np.flatnonzero((viol > tu) | (viol < -tl))
+        above = cx - lv.upper
+        below = cx - lv.lower
+        viol = np.where(above > 0.0, above, np.where(below < 0.0, below, 0.0))
+        tu = ROW_TOL * lv.up_scale
+        tl = ROW_TOL * lv.lo_scale
+        active = np.flatnonzero((above >= -tu) | (below <= tl))
+        violated = np.flatnonzero((above > tu) | (below < -tl))
     else:
-        viol = np.zeros(0)
-        active = violated = np.zeros(0, dtype=int)
+        viol = _ZERO
+        active = violated = _NO_ROWS
     cost = float(res @ res + viol @ viol)
     return LevelReport(
         name=lv.name,
@@ -595,50 +679,63 @@ def _sigma_recursion(levels: list[CheckedLevel], x: np.ndarray, rank_tol: float)
     Follows the basis algorithm's definition: ``Z`` spans the null space of the
     equality rows and violated rows of the levels above.
     """
-    n = x.shape[0]
     Z: np.ndarray | None = None
-    r = n
+    r = x.shape[0]
     out = []
     for lv in levels:
-        me, mi = lv.m_eq, lv.m_in
         if r == 0:
-            m = me + (int(np.count_nonzero(_active_rows(lv, lv.C @ x))) if mi else 0)
-            out.append(0.0 if m else float("inf"))
+            out.append(_sigma_level(lv, None, None, x, None, rank_tol))
             continue
         Ak = lv.A if Z is None else lv.A @ Z
-        svd_a = None
-        if me:
-            s = np.linalg.svd(Ak, compute_uv=False)
-            svd_a = (s, rank_tol * max(float(s[0]) if s.size else 0.0, float(np.abs(lv.A).max())))
-        out.append(_sigma_level(lv, Ak, Z, x, svd_a, rank_tol))
-        rows = [lv.A]
-        if mi:
-            d = _dist(lv.C @ x, lv.lower, lv.upper)
-            tl, tu = _bound_tol(lv.lower, lv.upper, ROW_TOL)
-            rows.append(lv.C[(d > tu) | (d < -tl)])
-        F = np.concatenate(rows)
+        out.append(_sigma_level(lv, Ak, Z, x, None, rank_tol))
+        F = lv.A
+        scale = lv.a_scale
+        if lv.m_in:
+            cx = lv.C @ x
+            viol = (cx > lv.upper + ROW_TOL * lv.up_scale) | (cx < lv.lower - ROW_TOL * lv.lo_scale)
+            if viol.any():
+                F = np.concatenate((F, lv.C[viol]))
+                scale = max(scale, float(np.abs(lv.C[viol]).max()))
         if F.shape[0] == 0:
             continue
-        Fk = F if Z is None else F @ Z
-        _, s, Vt = np.linalg.svd(Fk, full_matrices=True)
-        scale = max(float(s[0]) if s.size else 0.0, float(np.abs(F).max()))
-        null = Vt[int(np.count_nonzero(s > rank_tol * scale)):]
-        Z = null.T if Z is None else Z @ null.T
+        null = _PivotedQR(F if Z is None else F @ Z, rank_tol, scale).null()
+        Z = null if Z is None else Z @ null
         r = Z.shape[1]
     return out
 
 
-def _append_independent(E: np.ndarray, A: np.ndarray, rank_tol: float) -> np.ndarray:
-    """Rows of ``A`` appended to ``E`` one by one, skipping rows dependent on those kept."""
-    rows = list(E)
-    for a in A:
-        if rows:
-            M = np.array(rows)
-            # distance of a to the row space of M
-            coef, *_ = np.linalg.lstsq(M.T, a, rcond=None)
-            resid = float(np.linalg.norm(a - M.T @ coef))
-        else:
-            resid = float(np.linalg.norm(a))
-        if resid > 1e3 * rank_tol * max(1.0, float(np.linalg.norm(a))):
-            rows.append(a)
-    return np.array(rows).reshape(-1, E.shape[1])
+INDEPENDENT_TOL = 1e-8
+"""The cascade holds an earlier equality row only if its distance to the span
+of the rows already held exceeds this fraction of its norm."""
+
+
+def _append_independent(
+    E: np.ndarray, Q: np.ndarray, A: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Append the rows of ``A`` to ``E`` that are independent of the rows held.
+
+    Args:
+        E: Held rows ``(q, n)``.
+        Q: Orthonormal basis of their span ``(n, q)``.
+        A: Candidate rows ``(m, n)``.
+
+    Returns:
+        The new ``(E, Q)`` (Gram-Schmidt, applied twice for stability).
+
+    """
+    keep = []
+    cols = [Q]
+    for i, a in enumerate(A):
+        na = float(np.linalg.norm(a))
+        if na == 0.0:
+            continue
+        B = np.concatenate(cols, axis=1) if len(cols) > 1 else cols[0]
+        r = a - B @ (B.T @ a)
+        r -= B @ (B.T @ r)
+        nr = float(np.linalg.norm(r))
+        if nr > INDEPENDENT_TOL * na:
+            keep.append(i)
+            cols.append((r / nr)[:, None])
+    if not keep:
+        return E, Q
+    return np.concatenate([E, A[keep]]), np.concatenate(cols, axis=1)

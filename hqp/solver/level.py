@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -53,6 +53,14 @@ class CheckedLevel:
     lower: np.ndarray
     upper: np.ndarray
     name: str
+    lo_scale: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    """``max(1, |lower|)`` per row (1 where infinite): scale of row tolerances."""
+    up_scale: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    """``max(1, |upper|)`` per row (1 where infinite)."""
+    bounded: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
+    """Rows with at least one finite bound."""
+    a_scale: float = 0.0
+    """Largest absolute entry of ``A`` (0 without equality rows)."""
 
     @property
     def m_eq(self) -> int:
@@ -70,40 +78,48 @@ def _where(k: int, name: str, field: str) -> str:
     return f"{label}, field {field}"
 
 
-def _matrix(value: Any, k: int, name: str, field: str) -> np.ndarray:
-    where = _where(k, name, field)
+def _as_float(value: Any, k: int, name: str, field: str) -> np.ndarray:
+    """Float64 view of ``value`` (no copy when it already is one)."""
+    if type(value) is np.ndarray and value.dtype == np.float64:
+        return value
     try:
-        arr = np.array(value, dtype=float)
+        return np.asarray(value, dtype=float)
     except (TypeError, ValueError) as exc:
-        raise InvalidLevel(f"{where}: not a numeric array ({exc})") from None
+        raise InvalidLevel(f"{_where(k, name, field)}: not a numeric array ({exc})") from None
+
+
+def _finite_or_raise(arr: np.ndarray, k: int, name: str, field: str, allow_inf: bool) -> None:
+    if allow_inf:
+        if np.isnan(arr).any():
+            raise InvalidLevel(f"{_where(k, name, field)}: contains NaN")
+        return
+    if not np.isfinite(arr).all():
+        what = "NaN" if np.isnan(arr).any() else "inf"
+        bad = np.argwhere(~np.isfinite(arr))[0].tolist()
+        raise InvalidLevel(f"{_where(k, name, field)}: contains {what} (at index {bad})")
+
+
+def _matrix(value: Any, k: int, name: str, field: str) -> np.ndarray:
+    arr = _as_float(value, k, name, field)
     if arr.ndim == 1:
         arr = arr[None, :]  # one row given as a vector
     if arr.ndim != 2:
-        raise InvalidLevel(f"{where}: expected a 2-D matrix, got shape {arr.shape}")
-    if np.isnan(arr).any():
-        raise InvalidLevel(f"{where}: contains NaN")
-    if np.isinf(arr).any():
-        raise InvalidLevel(f"{where}: contains inf")
+        raise InvalidLevel(f"{_where(k, name, field)}: expected a 2-D matrix, got shape "
+                           f"{arr.shape}")
+    _finite_or_raise(arr, k, name, field, False)
     return arr
 
 
 def _vector(value: Any, m: int, k: int, name: str, field: str, *, fill: float,
             allow_inf: bool) -> np.ndarray:
-    where = _where(k, name, field)
     if value is None:
         return np.full(m, fill)
-    try:
-        arr = np.array(value, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise InvalidLevel(f"{where}: not a numeric array ({exc})") from None
+    arr = _as_float(value, k, name, field)
     if arr.ndim == 0 and m == 1:
         arr = arr.reshape(1)
     if arr.shape != (m,):
-        raise InvalidLevel(f"{where}: expected shape ({m},), got {arr.shape}")
-    if np.isnan(arr).any():
-        raise InvalidLevel(f"{where}: contains NaN")
-    if not allow_inf and np.isinf(arr).any():
-        raise InvalidLevel(f"{where}: contains inf")
+        raise InvalidLevel(f"{_where(k, name, field)}: expected shape ({m},), got {arr.shape}")
+    _finite_or_raise(arr, k, name, field, allow_inf)
     return arr
 
 
@@ -158,15 +174,28 @@ def check_level(level: Any, k: int, n: int | None) -> CheckedLevel:
     b = _vector(level.b, A.shape[0], k, name, "b", fill=0.0, allow_inf=False)
     lower = _vector(level.lower, C.shape[0], k, name, "lower", fill=-np.inf, allow_inf=True)
     upper = _vector(level.upper, C.shape[0], k, name, "upper", fill=np.inf, allow_inf=True)
-    if np.any(lower == np.inf):
-        raise InvalidLevel(f"{_where(k, name, 'lower')}: contains +inf")
-    if np.any(upper == -np.inf):
-        raise InvalidLevel(f"{_where(k, name, 'upper')}: contains -inf")
-    bad = np.flatnonzero(lower > upper)
-    if bad.size:
-        i = int(bad[0])
-        raise InvalidLevel(
-            f"{_where(k, name, 'lower/upper')}: lower > upper at row {i} "
-            f"({lower[i]:g} > {upper[i]:g}); {bad.size} such row(s)"
-        )
-    return CheckedLevel(A, b, C, lower, upper, name)
+    lo_s = up_s = _EMPTY
+    bounded = _NO_BOOL
+    if C.shape[0]:
+        if (lower == np.inf).any():
+            raise InvalidLevel(f"{_where(k, name, 'lower')}: contains +inf")
+        if (upper == -np.inf).any():
+            raise InvalidLevel(f"{_where(k, name, 'upper')}: contains -inf")
+        if (lower > upper).any():
+            bad = np.flatnonzero(lower > upper)
+            i = int(bad[0])
+            raise InvalidLevel(
+                f"{_where(k, name, 'lower/upper')}: lower > upper at row {i} "
+                f"({lower[i]:g} > {upper[i]:g}); {bad.size} such row(s)"
+            )
+        lo_s = np.abs(lower)
+        lo_s[~(lo_s < np.inf) | (lo_s < 1.0)] = 1.0
+        up_s = np.abs(upper)
+        up_s[~(up_s < np.inf) | (up_s < 1.0)] = 1.0
+        bounded = (lower > -np.inf) | (upper < np.inf)
+    a_scale = float(np.abs(A).max()) if A.shape[0] and A.shape[1] else 0.0
+    return CheckedLevel(A, b, C, lower, upper, name, lo_s, up_s, bounded, a_scale)
+
+
+_EMPTY = np.zeros(0)
+_NO_BOOL = np.zeros(0, dtype=bool)

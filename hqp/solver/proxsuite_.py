@@ -12,13 +12,18 @@ from hqp.solver.backend import _INF, QPBackend
 EPS_ABS = 1e-10
 """Absolute primal/dual residual tolerance (the contract's cost tolerance needs ~1e-9)."""
 
+_SOLVED = proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED
+_WARM = proxsuite.proxqp.InitialGuess.WARM_START_WITH_PREVIOUS_RESULT
+
 
 class ProxsuiteBackend(QPBackend):
     """``proxsuite.proxqp.dense.QP`` kept per slot while ``(nv, neq, nin)`` holds.
 
     The first solve of a slot runs ``init`` (cold start, equilibration); later
     solves with the same dimensions run ``update`` and start from the previous
-    primal and dual solution (``WARM_START_WITH_PREVIOUS_RESULT``).
+    primal and dual solution (``WARM_START_WITH_PREVIOUS_RESULT``). A warm
+    solve that does not report success (a stale preconditioner or start can
+    mislead ProxQP's infeasibility detection) is repeated cold, once.
     """
 
     name = "proxsuite"
@@ -30,47 +35,48 @@ class ProxsuiteBackend(QPBackend):
         """Drop every persistent problem."""
         self._qps.clear()
 
+    @staticmethod
+    def _cold(dims, H, g, E, e, C, lo, up):
+        nv, neq, nin = dims
+        qp = proxsuite.proxqp.dense.QP(nv, neq, nin)
+        s = qp.settings
+        s.eps_abs = EPS_ABS
+        s.eps_rel = 0.0
+        s.max_iter = 10000
+        s.verbose = False
+        s.compute_timings = False
+        # The level QPs are feasible by construction (they contain the previous
+        # optimum); the default 1e-4 infeasibility test misfires on degenerate
+        # feasible sets, so it is made much stricter.
+        s.eps_primal_inf = 1e-12
+        s.eps_dual_inf = 1e-12
+        qp.init(H, g, E, e, C, lo, up)
+        qp.solve()
+        # Warm starts need a previous result: switch only after the first solve.
+        s.initial_guess = _WARM
+        return qp
+
     def solve(self, slot, H, g, E, e, C, lo, up):  # noqa: D102 - documented in the base
         nv = H.shape[0]
         neq = 0 if E is None else E.shape[0]
         nin = 0 if C is None else C.shape[0]
+        if not neq:
+            E = e = None
         if nin:
             lo = np.maximum(lo, -_INF)
             up = np.minimum(up, _INF)
+        else:
+            C = lo = up = None
         dims = (nv, neq, nin)
         entry = self._qps.get(slot)
         if entry is None or entry[0] != dims:
-            qp = proxsuite.proxqp.dense.QP(nv, neq, nin)
-            s = qp.settings
-            s.eps_abs = EPS_ABS
-            s.eps_rel = 0.0
-            s.max_iter = 10000
-            s.verbose = False
-            s.compute_timings = False
-            qp.init(
-                H,
-                g,
-                E if neq else None,
-                e if neq else None,
-                C if nin else None,
-                lo if nin else None,
-                up if nin else None,
-            )
-            qp.solve()
-            # Warm starts need a previous result: switch only after the first solve.
-            s.initial_guess = proxsuite.proxqp.InitialGuess.WARM_START_WITH_PREVIOUS_RESULT
+            qp = self._cold(dims, H, g, E, e, C, lo, up)
             self._qps[slot] = (dims, qp)
         else:
             qp = entry[1]
-            qp.update(
-                H,
-                g,
-                E if neq else None,
-                e if neq else None,
-                C if nin else None,
-                lo if nin else None,
-                up if nin else None,
-            )
+            qp.update(H, g, E, e, C, lo, up)
             qp.solve()
-        ok = qp.results.info.status == proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED
-        return qp.results.x, ok
+            if qp.results.info.status != _SOLVED:
+                qp = self._cold(dims, H, g, E, e, C, lo, up)
+                self._qps[slot] = (dims, qp)
+        return qp.results.x, qp.results.info.status == _SOLVED

@@ -20,7 +20,6 @@ class QuadprogBackend(QPBackend):
 
     name = "quadprog"
     needs_pd = True
-    needs_independent_eq = True
 
     def solve(self, slot, H, g, E, e, C, lo, up):  # noqa: D102 - documented in the base
         H = _regularized(H, REGULARIZATION)
