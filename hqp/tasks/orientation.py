@@ -17,6 +17,32 @@ if TYPE_CHECKING:
     from hqp.model import RobotModel
 
 
+def _skew(a: np.ndarray) -> np.ndarray:
+    return np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
+
+
+def jlog3_rate(e: np.ndarray, de: np.ndarray) -> np.ndarray:
+    """Time derivative of ``Jlog3`` ``(3, 3)`` along ``e(t) = log3(E(t))`` with rate ``de``.
+
+    ``Jlog3(e) = I + [e]x / 2 + beta(theta) [e]x^2`` with ``theta = ||e||`` and
+    ``beta = 1/theta^2 - (1 + cos theta) / (2 theta sin theta)``, so
+    ``d/dt Jlog3 = [de]x / 2 + (beta'/theta) (e . de) [e]x^2 + beta ([de]x [e]x + [e]x [de]x)``.
+    Series below ``theta = 1e-2`` (pinocchio's ``Hlog3`` returns NaN at the identity,
+    i.e. exactly at the goal).
+    """
+    th = float(np.linalg.norm(e))
+    if th < 1e-2:
+        t2 = th * th
+        beta = 1.0 / 12.0 + t2 / 720.0 + t2 * t2 / 30240.0
+        gamma = 1.0 / 360.0 + t2 / 7560.0 + t2 * t2 / 201600.0
+    else:
+        s, c = np.sin(th), np.cos(th)
+        beta = 1.0 / th**2 - (1.0 + c) / (2.0 * th * s)
+        gamma = (-2.0 / th**3 + (th + s) / (2.0 * th**2 * (1.0 - c))) / th
+    E, dE = _skew(e), _skew(de)
+    return 0.5 * dE + gamma * float(e @ de) * (E @ E) + beta * (dE @ E + E @ dE)
+
+
 def orientation_kinematics(
     state: RobotModel, frame: str, goal: TrajectorySample
 ) -> TaskKinematics:
@@ -31,7 +57,8 @@ def orientation_kinematics(
 
     with ``J_ang`` and ``a_ang`` the angular rows of the ``LOCAL_WORLD_ALIGNED``
     Jacobian and drift, ``Jlog3`` the Jacobian of the log (not the frame's
-    angular Jacobian) and ``Hlog3(E, xi) = d Jlog3(E exp(s xi)) / ds`` at ``s = 0``.
+    angular Jacobian) and ``Hlog3(E, xi) = d Jlog3(E exp(s xi)) / ds`` at ``s = 0``
+    (computed by :func:`jlog3_rate`, which is finite at the identity).
     """
     Rg = goal.position
     wg = goal.velocity
@@ -45,8 +72,9 @@ def orientation_kinematics(
     Jlog = pin.Jlog3(E)
     xi = R.T @ (w - wg)
     JR = Jlog @ R.T
-    drift = JR @ (a_ang + np.cross(w, wg) - ag) + pin.Hlog3(E, xi) @ xi
-    return TaskKinematics(e, Jlog @ xi, JR @ J_ang, drift)
+    de = Jlog @ xi
+    drift = JR @ (a_ang + np.cross(w, wg) - ag) + jlog3_rate(e, de) @ xi
+    return TaskKinematics(e, de, JR @ J_ang, drift)
 
 
 class OrientationTask(TrackingTask):
