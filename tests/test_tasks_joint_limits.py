@@ -6,7 +6,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from hqp import InvalidGain
+from hqp import HQPError, InvalidGain
 from hqp.layout import Layout
 from hqp.model import RobotModel
 from hqp.tasks.base import Category
@@ -31,41 +31,37 @@ def humanoid() -> RobotModel:
 
 
 def test_braking_at_maximum_velocity_stays_viable(arm: RobotModel) -> None:
-    """Each joint runs at v_max toward its upper limit taking the upper bound every step."""
+    """Every joint runs at v_max toward its upper limit, taking its upper bound every step."""
     dt = 4e-3  # any period works; a coarse one keeps the test fast
     data = arm.model.createData()
-    q0 = arm.neutral()
-    arm.update(q0, np.zeros(arm.nv))
+    q, v = arm.neutral(), np.zeros(arm.nv)
+    arm.update(q, v)
     A = max_acceleration_from_torques(arm, margin=0.5)
     assert np.all(A > 0) and np.all(np.isfinite(A))
     task = JointLimits(qdd_max=A)
+    # Start a little before the last viable position for v_max.
+    q = arm.q_upper - V_MAX**2 / (2 * A) - 0.05
+    v = np.full(arm.nv, V_MAX)
     worst_torque = 0.0
-    for i in range(arm.na):
-        q, v = q0.copy(), np.zeros(arm.nv)
-        # Start at the last viable position for v_max, a little before.
-        q[i] = arm.q_upper[i] - V_MAX**2 / (2 * A[i]) - 0.05
-        v[i] = V_MAX
-        closest = np.inf
-        for _ in range(1200):
-            arm.update(q, v)
-            lb, ub = task.bounds(arm, dt)
-            assert np.all(lb <= ub + 1e-12)
-            assert ub[i] >= -A[i] - 1e-9  # braking never needs more than A
-            assert lb[i] <= A[i] + 1e-9
-            a = np.zeros(arm.nv)
-            a[i] = ub[i]
-            assert abs(a[i]) <= A[i] + 1e-9
-            tau = pin.rnea(arm.model, data, q, v, a)
-            worst_torque = max(worst_torque, float(np.max(np.abs(tau) / TAU_MAX)))
-            q = q + dt * v + 0.5 * dt**2 * a
-            v = v + dt * a
-            assert q[i] <= arm.q_upper[i] + 1e-12
-            assert abs(v[i]) <= V_MAX + 1e-9
-            closest = min(closest, arm.q_upper[i] - q[i])
-        # Not conservative: the joint ends up at its limit, nearly at rest (taking the
-        # upper bound every step leaves a velocity ripple of order A dt at the limit).
-        assert closest < 1e-3
-        assert abs(v[i]) < 2 * A[i] * dt
+    closest = np.full(arm.na, np.inf)
+    for _ in range(int(1.2 * (V_MAX / A.min() + 0.05 / V_MAX) / dt)):
+        arm.update(q, v)
+        lb, ub = task.bounds(arm, dt)
+        assert np.all(lb <= ub + 1e-12)
+        assert np.all(ub >= -A - 1e-9)  # braking never needs more than A
+        a = ub
+        assert np.all(np.abs(a) <= A + 1e-9)
+        tau = pin.rnea(arm.model, data, q, v, a)
+        worst_torque = max(worst_torque, float(np.max(np.abs(tau) / TAU_MAX)))
+        q = q + dt * v + 0.5 * dt**2 * a
+        v = v + dt * a
+        assert np.all(q <= arm.q_upper + 1e-12)
+        assert np.all(np.abs(v) <= V_MAX + 1e-9)
+        closest = np.minimum(closest, arm.q_upper - q)
+    # Not conservative: the joints end up at their limits, nearly at rest (taking the
+    # upper bound every step leaves a velocity ripple of order A dt at the limit).
+    assert np.all(closest < 1e-3)
+    assert np.all(np.abs(v) < 2 * A * dt)
     assert 0.05 < worst_torque <= 1.0
 
 
@@ -196,19 +192,20 @@ def test_activation_zone_rows(humanoid: RobotModel) -> None:
 def test_activation_zone_closed_loop_stops_before_the_limit(arm: RobotModel) -> None:
     """A joint entering its zone at 1 rad/s is driven back to the safety position."""
     layout = Layout.build(arm.nv)
+    dt = 2e-3
     task = JointLimitZone(zone=0.15, kp=100.0, kv=20.0)
     q, v = arm.neutral(), np.zeros(arm.nv)
     q[1] = arm.q_upper[1] - 0.2
     v[1] = 1.0
     peak = -np.inf
-    for _ in range(3000):
+    for _ in range(1000):
         arm.update(q, v)
-        rows = task.rows(arm, layout, DT, 0.0)
+        rows = task.rows(arm, layout, dt, 0.0)
         a = np.zeros(arm.nv)
         if rows.n_eq:
             a[task.active_indices(arm)[0]] = rows.b
-        q = q + DT * v + 0.5 * DT**2 * a
-        v = v + DT * a
+        q = q + dt * v + 0.5 * dt**2 * a
+        v = v + dt * a
         peak = max(peak, q[1])
     assert peak < arm.q_upper[1] - 0.05
     np.testing.assert_allclose(q[1], arm.q_upper[1] - 0.15, atol=2e-3)
@@ -222,3 +219,47 @@ def test_activation_zone_errors() -> None:
         JointLimitZone(kp=0.0)
     with pytest.raises(InvalidGain, match="max_velocity"):
         JointLimitZone(max_velocity=-1.0)
+
+
+def test_support_estimate_against_kinetic_and_potential_energy(humanoid: RobotModel) -> None:
+    """With the right foot held, a right-leg joint moves the rest of the body about its axis.
+
+    Independent check: the generalized velocity that turns the whole robot
+    about the joint axis while the joint turns back (so its subtree is still)
+    has kinetic energy ``I_rest / 2`` (``v^T M v``) and weight power ``v^T g``.
+    """
+    rng = np.random.default_rng(14)
+    model = humanoid.model
+    data = model.createData()
+    supports = ["rleg_effector_body"]
+    tau = humanoid.tau_max
+    for _ in range(5):
+        q = humanoid.random_configuration(rng)
+        humanoid.update(q, np.zeros(humanoid.nv))
+        A = max_acceleration_from_torques(humanoid, margin=1.0, supports=supports)
+        pin.forwardKinematics(model, data, q)
+        pin.computeJointJacobians(model, data, q)
+        M = pin.crba(model, data, q)
+        M = np.triu(M) + np.triu(M, 1).T
+        g = pin.computeGeneralizedGravity(model, data, q)
+        for name in ("rleg_shoulder2_joint", "rleg_elbow_joint", "rleg_wrist1_joint",
+                     "rarm_elbow_joint", "lleg_elbow_joint"):
+            j = model.getJointId(name)
+            i = humanoid.joint_index(name)
+            iv = model.joints[j].idx_v
+            if name.startswith("rleg"):
+                S = pin.getJointJacobian(model, data, j, pin.ReferenceFrame.WORLD)[:, iv]
+                v = np.zeros(humanoid.nv)
+                v[:6] = data.oMi[1].actInv(pin.Motion(S)).vector
+                v[iv] = -1.0
+                inertia, weight = v @ M @ v, abs(v @ g)
+            else:  # the subtree moves: inertia M_ii, weight torque g_i
+                inertia, weight = M[iv, iv], abs(g[iv])
+            expected = max(tau[i] - weight, 0.0) / inertia
+            np.testing.assert_allclose(A[i], expected, rtol=1e-9)
+    # Double support: a leg joint keeps the smaller of its two sides.
+    both = max_acceleration_from_torques(humanoid, 1.0, supports=supports + ["lleg_effector_body"])
+    one = max_acceleration_from_torques(humanoid, 1.0, supports=supports)
+    assert np.all(both <= one + 1e-12)
+    with pytest.raises(HQPError, match="unknown frame 'sole'"):
+        max_acceleration_from_torques(humanoid, supports=["sole"])

@@ -37,9 +37,11 @@ configuration with :func:`max_acceleration_from_torques`. Without
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
 import numpy as np
+import pinocchio as pin
 
 from hqp.errors import InvalidGain, check_array
 from hqp.tasks.base import Category, Rows, Task
@@ -49,37 +51,95 @@ if TYPE_CHECKING:
     from hqp.model import RobotModel
 
 
-def max_acceleration_from_torques(state: RobotModel, margin: float = 0.5) -> np.ndarray:
+def max_acceleration_from_torques(
+    state: RobotModel, margin: float = 0.5, supports: Sequence[str] | None = None
+) -> np.ndarray:
     """Estimate, per actuated joint, an acceleration the torque limits can produce at ``state``.
 
-    For joint ``i`` alone accelerating by ``A_i`` (other accelerations zero),
-    the actuated torques are ``tau = M_{a,i} A_i + h_a``; ``A_i`` is the
-    largest value with ``|tau_j| <= tau_max_j`` for every actuated ``j``:
+    Two models of "joint ``i`` alone accelerating by ``A_i``":
 
-        A_i = margin * min_j (tau_max_j - |h_j|)_+ / |M_ji|.
+    * Without ``supports`` (a fixed base, or a floating base with its base
+      held): the other accelerations are zero, so the actuated torques are
+      ``tau = M_{a,i} A_i + h_a``, and ``A_i`` is the largest value with
+      ``|tau_j| <= tau_max_j`` for every actuated ``j``:
+      ``A_i = margin * min_j (tau_max_j - |h_j|)_+ / |M_ji|``.
+    * With ``supports`` (frames held by the environment, e.g. the soles of a
+      standing humanoid): joint ``i`` moves the side of the robot that holds
+      no support (the rest of the body about an ankle, the arm about a
+      shoulder), so ``A_i = margin * (tau_max_i - |g_side|)_+ / I_side``,
+      with ``I_side`` the inertia of the moving side about the joint axis
+      [kg m^2] and ``g_side`` the torque of its weight about the axis [N m].
+      When both sides hold a support (a hip in double support), the smaller
+      of the two values is kept.
 
-    It ignores the floating base's own dynamics and several joints braking at
-    once, hence the ``margin``.
+    Both ignore several joints braking at once and velocity-dependent forces,
+    hence the ``margin``. Compute it once at a nominal configuration and pass
+    it as ``JointLimits(qdd_max=...)``.
 
     Args:
-        state: Updated robot model (``M``, ``h``, ``tau_max``).
+        state: Updated robot model (``M``, ``h``, placements, ``tau_max``).
         margin: Fraction of the estimate kept, in ``(0, 1]``.
+        supports: Names of the frames held by the environment (``None``: the
+            fixed-base model above).
 
     Returns:
         ``A`` ``(na,)`` [rad/s^2 or m/s^2] (``inf`` for unbounded torques).
 
     Raises:
         InvalidGain: ``margin`` outside ``(0, 1]``.
+        InvalidFrame: A support frame that is not in the model.
 
     """
     if not (0.0 < margin <= 1.0):
         raise InvalidGain(f"max_acceleration_from_torques: margin must be in (0, 1], got {margin}")
+    if supports is not None:
+        return margin * _support_acceleration(state, supports)
     act = state.actuated
     Maa = np.abs(state.M[act, act])
     room = np.maximum(state.tau_max - np.abs(state.h[act]), 0.0)
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = np.where(Maa > 1e-12, room[:, None] / Maa, np.inf)
     return margin * ratio.min(axis=0)
+
+
+def _support_acceleration(state: RobotModel, supports: Sequence[str]) -> np.ndarray:
+    """``(tau_max_i - |g_side|)_+ / I_side`` of the moving side of each joint (see above)."""
+    model, data = state.model, state.data
+    held = {
+        model.frames[state.frame_id(f, "max_acceleration_from_torques")].parentJoint
+        for f in supports
+    }
+    first = model.njoints - state.na
+    bodies = [data.oMi[k].act(model.inertias[k]) for k in range(model.njoints)]
+    total = pin.Inertia.Zero()
+    for Y in bodies[1:]:
+        total += Y
+    hold = pin.Motion(-state.gravity_vector, np.zeros(3))  # acceleration that holds the weight
+    out = np.zeros(state.na)
+    for i in range(state.na):
+        j = first + i
+        J = pin.getJointJacobian(model, data, j, pin.ReferenceFrame.WORLD)
+        S = J[:, model.joints[j].idx_v]
+        motion = pin.Motion(S)
+        subtree = set(model.subtrees[j])
+        sub = pin.Inertia.Zero()
+        for k in subtree:
+            sub += bodies[k]
+        sub_held = bool(held & subtree)
+        rest_held = bool(held - subtree)
+        sides = []
+        if not sub_held or rest_held:
+            sides.append(sub)  # the subtree moves (arm, swing leg; or both sides held)
+        if sub_held:
+            sides.append(total - sub)  # the rest of the body moves about the joint
+        best = np.inf
+        for Y in sides:
+            inertia = float(S @ (Y * motion).vector)
+            weight = abs(float(S @ (Y * hold).vector))
+            if inertia > 1e-12:
+                best = min(best, max(state.tau_max[i] - weight, 0.0) / inertia)
+        out[i] = best
+    return out
 
 
 def _upper_bounds(
