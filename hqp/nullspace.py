@@ -401,30 +401,36 @@ def prioritized_torques(
         qdd0 = -Minv @ h
     Phi = S @ B
     Phi = 0.5 * (Phi + Phi.T)
-    Phi_pinv = M.copy() if plain else _sym_pinv(Phi, PHI_TOL)[0]
+    if plain:  # fixed base: Phi = M^-1 = R^-1 R^-T, whitening by the Cholesky factor
+        Phi_pinv = M.copy()
+        Wh, Tm = Rinv, R.T.copy()
+        Z_int = np.zeros((na, 0))
+    else:  # Phi = U diag(w) U^T: L = U_r diag(w_r)^(1/2), null(Phi) = span(U_n)
+        w, U = np.linalg.eigh(Phi)
+        keep = w > PHI_TOL * max(float(w[-1]), 0.0)
+        Ur, wr = U[:, keep], w[keep]
+        Phi_pinv = (Ur / wr) @ Ur.T
+        Tm = Ur / np.sqrt(wr)  # (L^T)^+
+        Wh = B @ Tm  # B Phi^+ L
+        Z_int = U[:, ~keep]
 
     if method == "literal":
         tau, records, null_spaces = _literal(checked, names, B, Phi, Phi_pinv, qdd0, eig_tol)
-        Wh, Tm = _whitening(M, S, B, Phi, chol_upper=None)
         bases: list[np.ndarray] = []
     else:
-        Wh, Tm = _whitening(M, S, B, Phi, chol_upper=R if plain else None)
         y, records, bases = _whitened(checked, names, Wh, qdd0, eig_tol)
         tau = Tm @ y
         null_spaces = []
 
     # Internal forces: torques in null(Phi) change f, not qdd.
     tau_int = np.zeros(na)
-    if internal_forces == "min-norm" and Js.shape[0]:
-        w, U = np.linalg.eigh(Phi)
-        Z = U[:, w <= PHI_TOL * max(float(w[-1]), 0.0)]
-        if Z.shape[1]:
-            # f(tau) = Lambda_s (b_s - J_s M^-1 (S^T tau - h)); d f / d tau = -Lambda_s J_s M^-1 S^T
-            Df = -Lambda_s @ Js @ Minv @ S.T @ Z
-            f_plain = Lambda_s @ (bs - Js @ Minv @ (S.T @ tau - h))
-            y = np.linalg.lstsq(Df, -f_plain, rcond=None)[0]
-            tau_int = Z @ y
-            tau = tau + tau_int
+    if internal_forces == "min-norm" and Js.shape[0] and Z_int.shape[1]:
+        # f(tau) = Lambda_s (b_s - J_s M^-1 (S^T tau - h)); d f / d tau = -Lambda_s J_s M^-1 S^T
+        Df = -Lambda_s @ (Js @ Minv @ S.T @ Z_int)
+        f_plain = Lambda_s @ (bs - Js @ Minv @ (S.T @ tau - h))
+        y_int = np.linalg.lstsq(Df, -f_plain, rcond=None)[0]
+        tau_int = Z_int @ y_int
+        tau = tau + tau_int
 
     qdd = qdd0 + B @ tau
     if Js.shape[0]:
@@ -453,27 +459,6 @@ def prioritized_torques(
     )
 
 
-def _whitening(
-    M: np.ndarray, S: np.ndarray, B: np.ndarray, Phi: np.ndarray, chol_upper: np.ndarray | None
-) -> tuple[np.ndarray, np.ndarray]:
-    """Factor ``Phi = L L^T`` (``L`` of full column rank ``r``) for the whitened law.
-
-    Returns:
-        ``(W, T)`` with ``W = B Phi^+ L`` ``(nv, r)`` (so ``J W = J* L`` and ``qdd = qdd0 + W y``)
-        and ``T = (L^T)^+`` ``(na, r)`` (so ``tau = T y``). On a fixed base ``L = R^-1``:
-        ``W = R^-1``, ``T = R^T``.
-
-    """
-    if chol_upper is not None:
-        R = chol_upper
-        return sla.solve_triangular(R, np.eye(R.shape[0]), lower=False), R.T.copy()
-    w, U = np.linalg.eigh(Phi)
-    keep = w > PHI_TOL * max(float(w[-1]), 0.0)
-    Ur, wr = U[:, keep], w[keep]
-    T = Ur / np.sqrt(wr)
-    return B @ T, T
-
-
 def _whitened(
     levels: list[tuple[np.ndarray, np.ndarray]],
     names: Sequence[str],
@@ -500,7 +485,7 @@ def _whitened(
             bases.append(Z)
             continue
         Jh = J @ W
-        ref = float(np.linalg.norm(Jh, 2)) ** 2  # largest eigenvalue of J* Phi J*^T
+        ref = float(np.linalg.eigvalsh(Jh @ Jh.T)[-1])  # largest eigenvalue of J* Phi J*^T
         thr = max(eig_tol * ref, np.finfo(float).tiny)
         resid = a - J @ qdd0 - Jh @ y  # a_k - J_k qdd_<k
         if Z.shape[1] == 0:
@@ -711,7 +696,8 @@ class NullSpaceController(_controller_base()):  # type: ignore[misc]
 
     Args:
         robot_model: The controller's robot model.
-        contacts: Contacts to declare (as for the HQP controller).
+        contacts: Contacts to declare (as for the HQP controller; their limit rows are added
+            only when the stack has a CONTACT_LIMITS level, they are reported, not enforced).
         stack: The levels of tasks (joint limits the papers' way: put a
             :class:`~hqp.tasks.joint_limit_zone.JointLimitZone` at the top task level).
         dt: Control period [s].
@@ -753,7 +739,16 @@ class NullSpaceController(_controller_base()):  # type: ignore[misc]
         final_target: np.ndarray | None = None,
         diagnostics: str = "full",
     ) -> None:
-        super().__init__(robot_model, contacts, stack, dt, tolerance=tolerance,
+        from hqp.stack import Stack
+        from hqp.tasks.base import Category
+
+        stack = Stack() if stack is None else stack
+        # The law enforces no contact limits: declare them only where the stack has their level.
+        limits = Category.CONTACT_LIMITS in stack.level_categories
+        for contact in contacts:
+            if contact.name not in stack.contacts:
+                stack.add_contact(contact, limits=limits)
+        super().__init__(robot_model, (), stack, dt, tolerance=tolerance,
                          singular_tolerance=singular_tolerance, diagnostics=diagnostics,
                          damping=damping)
         if not (np.isfinite(eig_tol) and 0.0 < eig_tol < 1.0):
@@ -908,11 +903,8 @@ class NullSpaceController(_controller_base()):  # type: ignore[misc]
                 k, J, _ = entry
                 Jh = J @ law.whiten
                 ref = float(np.linalg.norm(Jh, 2)) ** 2
-                eig = np.linalg.eigvalsh(law.inverse_inertia(J, k))[::-1]
-                if J.shape[0] > law.bases[k].shape[1]:
-                    eig_min = 0.0
-                else:
-                    eig_min = float(max(eig[J.shape[0] - 1], 0.0))
+                eig = np.linalg.eigvalsh(law.inverse_inertia(J, k))  # ascending, (m,)
+                eig_min = float(max(eig[0], 0.0))
                 singular = eig_min < self.singular_tolerance * ref
             elif entry is not None:
                 k = entry[0]
@@ -946,6 +938,8 @@ class NullSpaceController(_controller_base()):  # type: ignore[misc]
         ``None`` when no torque at all can meet it.
         """
         k, J, a = entry
+        if not law.bases:  # method="literal" keeps projectors, not bases
+            return None
         r0 = J @ law.qdd - a
         Jh = J @ law.whiten
         scale = max(1.0, float(np.abs(Jh).max(initial=0.0)))
