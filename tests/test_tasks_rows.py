@@ -167,3 +167,33 @@ def test_move_to_starts_at_current_value(robot: RobotModel, layout: Layout) -> N
         task.rows(robot, layout, 1e-3, 0.5)
         np.testing.assert_allclose(task.error(), 0.0, atol=1e-9, err_msg=task.where())
         np.testing.assert_allclose(task.goal_at(1.5).position, goal, atol=1e-12)
+
+
+def test_task_feedforward_tracks_without_lag(robot: RobotModel, layout: Layout) -> None:
+    """A hand following a minimum-jerk trajectory stays on it (feedforward), a plain PD lags."""
+    q0, _ = start_and_goal_configurations(robot, 5)
+    dt = 1e-2
+    lags = {}
+    for feedforward in (True, False):
+        robot.update(q0, np.zeros(robot.nv))
+        task = PositionTask(robot, HAND, kp=100.0)
+        start = robot.frame_placement(HAND).translation.copy()
+        goal = start + np.array([0.15, -0.1, 0.1])
+        task.move_to(robot, goal, 1.0, 0.0)
+        traj = task.trajectory
+        q, v = q0.copy(), np.zeros(robot.nv)
+        worst = 0.0
+        for k in range(100):
+            t = k * dt
+            if not feedforward:
+                task.set_goal(traj.sample(t).position)  # same goal, no velocity/acceleration
+            rows = task.rows(robot, layout, dt, t)
+            worst = max(worst, float(np.linalg.norm(task.error())))
+            qdd = np.linalg.lstsq(rows.A[:, : robot.nv], rows.b, rcond=None)[0]
+            v = v + dt * qdd
+            q = robot.integrate(q, dt * v)
+            robot.update(q, v)
+        lags[feedforward] = worst
+    travel = float(np.linalg.norm([0.15, -0.1, 0.1]))
+    assert lags[True] < 0.01 * travel  # Euler discretisation only
+    assert lags[False] > 5 * lags[True]
