@@ -100,7 +100,7 @@ class InternalForcesTask(Task):
     support without carrying the body.
 
     Args:
-        robot: Robot model (unused beyond validation of the frames at run time).
+        robot: Robot model (for a uniform constructor; frames are checked at run time).
         contacts: Names of the two contacts in the layout (same kind).
         components: Selected coordinates (names of :data:`COMPONENTS`;
             default all but ``shear_vertical`` for surface contacts, ``("tension",)`` for
