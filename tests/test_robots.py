@@ -9,6 +9,7 @@ import pinocchio as pin
 import pytest
 
 import hqp
+import hqp.robots
 from hqp.layout import ContactType
 from hqp.robots import paper_humanoid as ph
 from hqp.robots.robot import Robot
@@ -135,13 +136,16 @@ def test_paper_humanoid_mjcf_and_urdf_agree(paper: Robot) -> None:
                 atol=1e-9,
             )
     np.testing.assert_allclose(sum(i.mass for i in m_mjcf.inertias), 71.0, rtol=1e-9)
+    # (MJCF-model frame index, URDF-model frame index) of frames with the same name; the
+    # MJCF model has both a BODY and an OP_FRAME (site) "pelvis" and "trunk".
     common = [
-        f.name for f in m_mjcf.frames
+        (i, m_urdf.getFrameId(f.name)) for i, f in enumerate(m_mjcf.frames)
         if f.name != "universe" and m_urdf.existFrame(f.name)
         and f.type in (pin.FrameType.BODY, pin.FrameType.OP_FRAME)
     ]
+    common_names = {m_mjcf.frames[i].name for i, _ in common}
     for name in ("left_foot", "right_foot", "left_hand", "right_hand", "trunk", "pelvis", "head"):
-        assert name in common
+        assert name in common_names
     d_urdf, d_mjcf = m_urdf.createData(), m_mjcf.createData()
     rng = np.random.default_rng(0)
     for _ in range(10):
@@ -149,11 +153,10 @@ def test_paper_humanoid_mjcf_and_urdf_agree(paper: Robot) -> None:
                             .normalized().coeffs(), rng.uniform(-2.5, 2.5, m_urdf.nq - 7)])
         pin.framesForwardKinematics(m_urdf, d_urdf, q)
         pin.framesForwardKinematics(m_mjcf, d_mjcf, q)
-        for name in common:
+        for i_mjcf, i_urdf in common:
             np.testing.assert_allclose(
-                d_urdf.oMf[m_urdf.getFrameId(name)].homogeneous,
-                d_mjcf.oMf[m_mjcf.getFrameId(name)].homogeneous,
-                atol=1e-9, err_msg=name,
+                d_urdf.oMf[i_urdf].homogeneous, d_mjcf.oMf[i_mjcf].homogeneous,
+                atol=1e-9, err_msg=m_mjcf.frames[i_mjcf].name,
             )
         pin.crba(m_urdf, d_urdf, q)
         pin.crba(m_mjcf, d_mjcf, q)
@@ -221,13 +224,24 @@ def test_paper_humanoid_standing(paper: Robot) -> None:
         assert paper.q_standing[7 + model.joint_index(f"{side}_knee")] < -0.1  # bent knees
 
 
-def sink_depth(robot: Robot, seconds: float = 1.0) -> float:
+def sink_depth(
+    robot: Robot,
+    seconds: float = 1.0,
+    solref: tuple[float, ...] | None = None,
+    solimp: tuple[float, ...] | None = None,
+) -> float:
     """Largest sole penetration [m] over the last 0.1 s of a robot held in q_standing.
 
     The joints are held by stiff joint-equality constraints in a copy of the MJCF (the
     shipped model is untouched), the free base is free: only the contacts carry the robot.
+    ``solref``/``solimp`` replace the geoms' contact parameters when given.
     """
     spec = mujoco.MjSpec.from_file(str(robot.mjcf_path))
+    for geom in spec.geoms:
+        if solref is not None:
+            geom.solref = list(solref)
+        if solimp is not None:
+            geom.solimp = list(solimp)
     base = spec.compile()
     q = robot.q_standing
     from hqp.sim.convert import StateMap
@@ -247,11 +261,132 @@ def sink_depth(robot: Robot, seconds: float = 1.0) -> float:
     depth = 0.0
     for k in range(steps):
         mujoco.mj_step(mj, data)
-        assert data.ncon > 0
         if k >= steps - 100:
+            assert data.ncon >= 6  # both soles (box-plane: up to 4 contacts each)
             depth = max(depth, -float(data.contact.dist[: data.ncon].min()))
     return depth
 
 
 def test_paper_humanoid_sinks_less_than_a_millimetre(paper: Robot) -> None:
     assert sink_depth(paper) < 1e-3
+
+
+# -- every robot ----------------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module", params=ROBOTS)
+def robot(request: pytest.FixtureRequest) -> Robot:
+    return hqp.robots.load(request.param)
+
+
+def test_uniform_frames(robot: Robot) -> None:
+    model = robot.model()
+    mj = robot.mujoco_model()
+    names = ["left_foot", "right_foot", "left_hand", "right_hand", "trunk", "pelvis", "head"]
+    assert robot.feet == ("left_foot", "right_foot")
+    assert robot.hands == ("left_hand", "right_hand")
+    assert robot.base_frame == "pelvis"
+    assert robot.head_frame == "head"
+    for name in names:
+        assert model.has_frame(name), name
+        assert mj.site(name).name == name
+    # The base frame is the free flyer's frame.
+    base = model.model.frames[model.frame_id("pelvis")]
+    assert base.parentJoint == 1
+    np.testing.assert_allclose(base.placement.homogeneous, np.eye(4), atol=1e-12)
+    assert [c.name for c in robot.contacts] == ["left_foot", "right_foot"]
+    for c in robot.contacts:
+        assert c.kind is ContactType.SURFACE
+        assert c.half_length > 0.05 and c.half_width > 0.02 and c.friction > 0
+
+
+def test_standing(robot: Robot) -> None:
+    _check_standing(robot)
+
+
+def test_mujoco_model_matches_controller_model(robot: Robot) -> None:
+    model = robot.model()
+    mj = robot.mujoco_model()
+    assert mj.nu == model.na
+    assert mj.opt.timestep == 0.001
+    assert mj.opt.integrator == mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+    np.testing.assert_allclose(mj.dof_damping, 0.0)
+    np.testing.assert_allclose(mj.dof_armature, 0.0)
+    np.testing.assert_allclose(mj.dof_frictionloss, 0.0)
+    np.testing.assert_allclose(mj.jnt_stiffness, 0.0)
+    assert not mj.actuator_ctrllimited.any()
+    assert not mj.actuator_forcelimited.any()
+    np.testing.assert_allclose(mj.body_mass.sum(), model.mass, rtol=1e-10)
+    for name in model.joint_names:
+        i = model.joint_index(name)
+        jnt = mj.joint(name)
+        assert jnt.limited[0]
+        np.testing.assert_allclose(
+            jnt.range, [model.q_lower[i] - 0.2, model.q_upper[i] + 0.2], atol=1e-10
+        )
+    # Only the sole boxes collide, with condim 3.
+    colliding = [g for g in range(mj.ngeom) if mj.geom_contype[g] or mj.geom_conaffinity[g]]
+    names = sorted(mj.geom(g).name for g in colliding)
+    assert names == ["floor", "left_sole", "right_sole"]
+    for g in colliding:
+        assert mj.geom_condim[g] == 3
+
+
+@pytest.mark.parametrize("name", ["g1", "talos"])
+def test_erd_robot_figures(name: str) -> None:
+    robot = hqp.robots.load(name)
+    model = robot.model()
+    urdf = ET.parse(robot.urdf_path).getroot()
+    urdf_mass = sum(float(link.find("inertial/mass").get("value"))
+                    for link in urdf.iter("link") if link.find("inertial/mass") is not None)
+    np.testing.assert_allclose(model.mass, urdf_mass, rtol=1e-12)
+    assert model.na == {"g1": 29, "talos": 32}[name]
+    limits = {
+        j.get("name"): j.find("limit") for j in urdf.iter("joint") if j.get("type") == "revolute"
+    }
+    for joint in model.joint_names:
+        i = model.joint_index(joint)
+        assert model.tau_max[i] == pytest.approx(float(limits[joint].get("effort")))
+        assert model.q_lower[i] == pytest.approx(float(limits[joint].get("lower")))
+        assert model.q_upper[i] == pytest.approx(float(limits[joint].get("upper")))
+
+
+@pytest.mark.parametrize("name", ROBOTS)
+def test_robots_sink_less_than_a_millimetre(name: str) -> None:
+    depth = sink_depth(hqp.robots.load(name))
+    assert 0.0 < depth < 1e-3
+
+
+def test_default_contact_parameters_would_sink_more() -> None:
+    """MuJoCo's default solref/solimp sink the paper humanoid by more than 1 mm: tuning matters."""
+    robot = hqp.robots.load("paper-humanoid")
+    assert sink_depth(robot, solref=(0.02, 1.0), solimp=(0.9, 0.95, 0.001, 0.5, 2.0)) > 1e-3
+
+
+def test_capsules_are_on_existing_frames(paper: Robot) -> None:
+    model = paper.model()
+    assert len(paper.capsules) >= 15
+    for capsule in paper.capsules:
+        assert model.has_frame(capsule.frame)
+        assert capsule.radius > 0
+    # Standing: left and right limbs are apart, and the hands are clear of the trunk.
+    model.update(paper.q_standing, np.zeros(model.nv))
+    by_name = {c.name: c for c in paper.capsules}
+
+    def points(name: str) -> np.ndarray:
+        c = by_name[name]
+        placement = model.frame_placement(c.frame)
+        s = np.linspace(0.0, 1.0, 50)[:, None]
+        local = (1 - s) * np.array(c.a) + s * np.array(c.b)
+        return local @ placement.rotation.T + placement.translation
+
+    def distance(n1: str, n2: str) -> float:
+        p1, p2 = points(n1), points(n2)
+        gap = np.linalg.norm(p1[:, None] - p2[None], axis=2).min()
+        return float(gap - by_name[n1].radius - by_name[n2].radius)
+
+    assert distance("left_thigh_0", "right_thigh_0") > 0.0
+    assert distance("left_shank_0", "right_shank_0") > 0.0
+    assert distance("left_foot", "right_foot") > 0.0
+    assert distance("left_hand", "trunk") > 0.0
+    assert distance("right_hand", "trunk") > 0.0

@@ -116,12 +116,15 @@ class Site:
         name: Frame name (a site in MJCF, a massless link in URDF).
         pos: Position ``(3,)`` in the body frame [m].
         rotation: Orientation ``(3, 3)`` in the body frame (identity if ``None``).
+        in_urdf: Whether the URDF gets a link for it (``False`` for a site that
+            marks a body's own frame, which the URDF already has as a link).
 
     """
 
     name: str
     pos: tuple[float, float, float]
     rotation: np.ndarray | None = None
+    in_urdf: bool = True
 
 
 @dataclass
@@ -434,6 +437,8 @@ def to_urdf(desc: Description) -> str:
                 "  </joint>",
             ]
         for site in body.sites:
+            if not site.in_urdf:
+                continue
             lines += [
                 f"  <link name={quoteattr(site.name)}/>",
                 f"  <joint name={quoteattr(site.name + '_fixed')} type=\"fixed\">",

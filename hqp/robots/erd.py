@@ -177,7 +177,10 @@ def _standing(spec: _Spec, model: pin.Model) -> np.ndarray:
             return 1e3
         return 1.0 if i in legs else 1e3
 
-    return solve_standing(model, _seed(spec, model), ("left_foot", "right_foot"), weight=weight)
+    return solve_standing(
+        model, _seed(spec, model), ("left_foot", "right_foot"),
+        weight=weight, active=lambda i: i < 6 or i in legs,
+    )
 
 
 def _body_names(model: pin.Model) -> dict[int, str]:

@@ -247,6 +247,7 @@ def description(
         Inertial(m, np.array([0.0, 0.0, l_lower - c]), np.diag(inertia)),
         geoms=[Geom("box", (0.09, hip_y + 0.05, 0.6 * l_lower), pos=(0.0, 0.0, 0.4 * l_lower),
                     rgba=(0.4, 0.4, 0.5, 1.0))],
+        sites=[Site("pelvis", (0.0, 0.0, 0.0), in_urdf=False)],
     )
     bodies.append(pelvis)
 
@@ -300,6 +301,7 @@ def description(
         trunk_inertial,
         geoms=[Geom("box", (0.1, shoulder_y - 0.05, 0.5 * z_shoulder),
                     pos=(0.0, 0.0, 0.5 * z_shoulder), rgba=(0.4, 0.4, 0.5, 1.0))],
+        sites=[Site("trunk", (0.0, 0.0, 0.0), in_urdf=False)],
     ))
     bodies.append(Body("head_yaw_link", "trunk", (0.0, 0.0, z_neck - HIP_H * H - l_lower), None,
                        _joint("", "head_yaw", Z), _housing()))
@@ -373,18 +375,43 @@ def standing_configuration(model: pin.Model) -> np.ndarray:
         return 1.0 if i in leg_dofs else 1e3
 
     return solve_standing(model, seed_configuration(model), ("left_foot", "right_foot"),
-                          weight=weight)
+                          weight=weight, active=lambda i: i < 6 or i in leg_dofs)
 
 
 def capsules() -> tuple[Capsule, ...]:
-    """Capsule proxies of the limbs (the MJCF's capsule geoms), attached to body frames."""
+    """Capsule proxies for distance primitives, attached to body frames.
+
+    The limbs' capsules are the MJCF's capsule geoms (thighs, shanks, upper arms,
+    forearms); the pelvis, trunk, head, hands and feet get capsules that enclose
+    their visual shapes (a sphere is a capsule with equal endpoints).
+    """
+    H = HEIGHT
     out = []
     for body in description().bodies:
         for k, geom in enumerate(g for g in body.geoms if g.kind == "capsule"):
-            assert geom.fromto is not None
-            a = tuple(float(x) for x in geom.fromto[:3])
-            b = tuple(float(x) for x in geom.fromto[3:])
-            out.append(Capsule(f"{body.name}_{k}", body.name, a, b, float(geom.size[0])))  # type: ignore[arg-type]
+            if geom.fromto is None:
+                continue
+            a = (float(geom.fromto[0]), float(geom.fromto[1]), float(geom.fromto[2]))
+            b = (float(geom.fromto[3]), float(geom.fromto[4]), float(geom.fromto[5]))
+            out.append(Capsule(f"{body.name}_{k}", body.name, a, b, float(geom.size[0])))
+    l_trunk = (SHOULDER_H - HIP_H) * H
+    l_lower = TRUNK_RATIOS[0] / sum(TRUNK_RATIOS) * l_trunk
+    z_shoulder = l_trunk - l_lower
+    hip_y = 0.25 * HIP_W * H
+    z_neck = 0.5 * (SHOULDER_H + CHIN_H) * H
+    l_head = H - z_neck
+    head_com = l_head * (1.0 - DE_LEVA["head"][1])
+    l_forearm, l_hand = FOREARM_L * H, HAND_L * H
+    l_foot, h_ankle = FOOT_L * H, ANKLE_H * H
+    out.append(Capsule("pelvis", "pelvis", (0.0, -hip_y, 0.06), (0.0, hip_y, 0.06), 0.11))
+    out.append(Capsule("trunk", "trunk", (0.0, 0.0, 0.1), (0.0, 0.0, z_shoulder - 0.1), 0.15))
+    out.append(Capsule("head", "head_link", (0.0, 0.0, head_com), (0.0, 0.0, head_com), 0.1))
+    for side in ("left", "right"):
+        out.append(Capsule(f"{side}_hand", f"{side}_forearm", (0.0, 0.0, -l_forearm - 0.02),
+                           (0.0, 0.0, -l_forearm - l_hand + 0.04), 0.045))
+        z = -h_ankle + 0.035
+        out.append(Capsule(f"{side}_foot", f"{side}_foot_link", (-0.25 * l_foot + 0.035, 0.0, z),
+                           (0.75 * l_foot - 0.035, 0.0, z), 0.035))
     return tuple(out)
 
 

@@ -197,6 +197,7 @@ def solve_standing(
     *,
     com_offset: np.ndarray | None = None,
     weight: Callable[[int], float] | None = None,
+    active: Callable[[int], bool] | None = None,
     iterations: int = 100,
     tol: float = 1e-12,
 ) -> np.ndarray:
@@ -213,6 +214,8 @@ def solve_standing(
         feet: ``(left, right)`` sole frame names.
         com_offset: Horizontal offset ``(2,)`` of the centre of mass goal [m].
         weight: Weight of velocity index ``i`` in ``W`` (default: 1).
+        active: Whether velocity index ``i`` may move (default: all); the
+            others keep their seed values exactly.
         iterations: Maximum Gauss-Newton steps.
         tol: Stop when the squared constraint error is below this.
 
@@ -235,6 +238,8 @@ def solve_standing(
         com_goal = com_goal + np.asarray(com_offset, dtype=float)
     w = np.array([weight(i) if weight else 1.0 for i in range(model.nv)])
     w_inv = 1.0 / w
+    if active is not None:
+        w_inv *= np.array([1.0 if active(i) else 0.0 for i in range(model.nv)])
     q = q_seed.copy()
     err = np.inf
     for _ in range(iterations):
@@ -254,7 +259,7 @@ def solve_standing(
         e = np.concatenate(errs)
         J = np.vstack(rows)
         err = float(e @ e)
-        d0 = pin.difference(model, q, q_seed)
+        d0 = w_inv * w * pin.difference(model, q, q_seed)  # zero on locked indices
         if err < tol and np.linalg.norm(d0) < 1e-12:
             break
         JW = J * w_inv
