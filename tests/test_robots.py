@@ -390,3 +390,57 @@ def test_capsules_are_on_existing_frames(paper: Robot) -> None:
     assert distance("left_foot", "right_foot") > 0.0
     assert distance("left_hand", "trunk") > 0.0
     assert distance("right_hand", "trunk") > 0.0
+
+
+@pytest.mark.parametrize("name", ["g1", "talos"])
+def test_erd_generated_urdf_equals_source(name: str) -> None:
+    """The mesh-free URDF (uniform frames as links) has the source URDF's dynamics."""
+    from hqp.robots import erd
+    from hqp.robots.robot import build_pinocchio_model
+
+    robot = hqp.robots.load(name)
+    assert robot.source_urdf_path is not None
+    source = build_pinocchio_model(robot.source_urdf_path, erd._extra_frames(erd.SPECS[name]))
+    generated = robot.pinocchio_model()
+    assert list(source.names) == list(generated.names)
+    for j in range(1, source.njoints):
+        np.testing.assert_allclose(source.inertias[j].mass, generated.inertias[j].mass, rtol=1e-11)
+        np.testing.assert_allclose(source.inertias[j].lever, generated.inertias[j].lever,
+                                   atol=1e-11)
+        np.testing.assert_allclose(source.inertias[j].inertia, generated.inertias[j].inertia,
+                                   atol=1e-11)
+        np.testing.assert_allclose(source.jointPlacements[j].homogeneous,
+                                   generated.jointPlacements[j].homogeneous, atol=1e-11)
+    for limits in ("lowerPositionLimit", "upperPositionLimit", "effortLimit", "velocityLimit"):
+        np.testing.assert_allclose(getattr(source, limits), getattr(generated, limits),
+                                   rtol=1e-11)
+    names = ["left_foot", "right_foot", "left_hand", "right_hand", "trunk", "pelvis", "head"]
+    d_source, d_generated = source.createData(), generated.createData()
+    rng = np.random.default_rng(5)
+    for _ in range(5):
+        q = np.concatenate([rng.uniform(-1, 1, 3), pin.Quaternion(*rng.normal(size=4))
+                            .normalized().coeffs(), rng.uniform(-1, 1, source.nq - 7)])
+        pin.framesForwardKinematics(source, d_source, q)
+        pin.framesForwardKinematics(generated, d_generated, q)
+        for frame in names:
+            np.testing.assert_allclose(
+                d_source.oMf[source.getFrameId(frame)].homogeneous,
+                d_generated.oMf[generated.getFrameId(frame)].homogeneous, atol=1e-10,
+            )
+
+
+@pytest.mark.parametrize("name", ROBOTS)
+def test_placo_loads_the_urdf(name: str) -> None:
+    placo = pytest.importorskip("placo")
+    robot = hqp.robots.load(name)
+    humanoid = placo.HumanoidRobot(str(robot.urdf_path))
+    humanoid.state.q = np.array(robot.q_standing)
+    humanoid.update_kinematics()
+    model = robot.model()
+    model.update(robot.q_standing, np.zeros(model.nv))
+    for frame in ("trunk", "left_foot", "right_foot"):
+        np.testing.assert_allclose(
+            humanoid.get_T_world_frame(frame), model.frame_placement(frame).homogeneous,
+            atol=1e-9,
+        )
+    np.testing.assert_allclose(humanoid.com_world(), model.com, atol=1e-9)

@@ -42,7 +42,15 @@ import hqp
 from hqp.errors import HQPError, UnknownName
 from hqp.layout import ContactType
 from hqp.robots import description as desc_mod
-from hqp.robots.description import Contact, Geom, from_pinocchio, to_mjcf, write_if_changed
+from hqp.robots.description import (
+    Contact,
+    Geom,
+    Site,
+    from_pinocchio,
+    to_mjcf,
+    to_urdf,
+    write_if_changed,
+)
 from hqp.robots.robot import (
     ContactSurface,
     Robot,
@@ -217,8 +225,14 @@ def _visual_geoms(
     return geoms
 
 
-def generate_mjcf(spec: _Spec, model: pin.Model, q_standing: np.ndarray) -> str:
-    """MJCF text of an example-robot-data robot (see the module docstring)."""
+def generate(spec: _Spec, model: pin.Model, q_standing: np.ndarray) -> tuple[str, str]:
+    """(URDF text, MJCF text) of an example-robot-data robot (see the module docstring).
+
+    Both come from one :class:`~hqp.robots.description.Description` of pinocchio's
+    model of the source URDF (with the uniform frames as sites). The URDF has no
+    meshes (PlaCo and pinocchio need none), the uniform frames as links on fixed
+    joints, and the sole boxes as collision geometry.
+    """
     body_names = _body_names(model)
     geoms = _visual_geoms(spec, model, body_names)
     sites: dict[str, tuple[str, pin.SE3]] = {}
@@ -242,7 +256,12 @@ def generate_mjcf(spec: _Spec, model: pin.Model, q_standing: np.ndarray) -> str:
     description.keyframes["standing"] = np.concatenate(
         [q_standing[:3], q_standing[6:7], q_standing[3:6], q_standing[7:]]
     )
-    return to_mjcf(description)
+    bodies = {b.name for b in description.bodies}
+    for body in description.bodies:
+        body.sites = [
+            Site(s.name, s.pos, s.rotation, in_urdf=s.name not in bodies) for s in body.sites
+        ]
+    return to_urdf(description), to_mjcf(description)
 
 
 def cache_dir() -> Path:
@@ -263,9 +282,9 @@ def robot(name: str) -> Robot:
     if name not in SPECS:
         raise UnknownName("robot", name, SPECS)
     spec = SPECS[name]
-    urdf_path = erd_robots_dir() / spec.urdf
+    source = erd_robots_dir() / spec.urdf
     extra = _extra_frames(spec)
-    model = build_pinocchio_model(urdf_path, extra)
+    model = build_pinocchio_model(source, extra)
     if not model.existFrame("pelvis"):
         raise HQPError(f"{name}: no pelvis frame")
     q = _standing(spec, model)
@@ -273,12 +292,18 @@ def robot(name: str) -> Robot:
     pin.framesForwardKinematics(model, data, q)
 
     digest = hashlib.sha256()
-    for part in (urdf_path, Path(__file__), Path(desc_mod.__file__)):
+    for part in (source, Path(__file__), Path(desc_mod.__file__)):
         digest.update(part.read_bytes())
     digest.update(np.round(q, 9).tobytes())
-    mjcf_path = cache_dir() / f"{name}-{digest.hexdigest()[:16]}.xml"
-    if not mjcf_path.exists():
-        write_if_changed(mjcf_path, generate_mjcf(spec, model, q))
+    stem = cache_dir() / f"{name}-{digest.hexdigest()[:16]}"
+    mjcf_path, urdf_path = stem.with_suffix(".xml"), stem.with_suffix(".urdf")
+    if not (mjcf_path.exists() and urdf_path.exists()):
+        urdf_text, mjcf_text = generate(spec, model, q)
+        write_if_changed(urdf_path, urdf_text)
+        write_if_changed(mjcf_path, mjcf_text)
+    generated = build_pinocchio_model(urdf_path)
+    if list(generated.names) != list(model.names):
+        raise HQPError(f"{name}: generated URDF {urdf_path} has another joint order")
 
     half_x, half_y = spec.sole_half
     contacts = tuple(
@@ -297,6 +322,6 @@ def robot(name: str) -> Robot:
         head_frame=spec.head,
         q_standing=q,
         standing_height=float(data.oMf[model.getFrameId("pelvis")].translation[2]),
-        extra_frames=extra,
+        source_urdf_path=source,
         package_dirs=(str(erd_share_dir()),),
     )

@@ -80,7 +80,8 @@ class Robot:
 
     Attributes:
         name: Registry name (``"paper-humanoid"``, ``"g1"``, ``"talos"``).
-        urdf_path: URDF file (pinocchio, PlaCo).
+        urdf_path: URDF file (pinocchio, PlaCo) with every frame of the common
+            roles; for g1 and talos a mesh-free file generated from the source.
         mjcf_path: MJCF file (MuJoCo: robot, floor, one motor per actuated joint).
         contacts: Contact surfaces (the soles).
         hands: ``(left, right)`` hand frame names.
@@ -98,7 +99,9 @@ class Robot:
         velocity_limits: Controller's velocity limits [rad/s] (``None``: URDF's).
         torque_limits: Controller's torque limits [N m] (``None``: URDF's).
         capsules: Capsule proxies of the limbs for distance primitives.
-        package_dirs: Package directories for the URDF's mesh paths.
+        package_dirs: Package directories for the source URDF's mesh paths.
+        source_urdf_path: The URDF the robot was generated from (``None`` when
+            :attr:`urdf_path` is the source).
 
     """
 
@@ -118,6 +121,7 @@ class Robot:
     torque_limits: np.ndarray | None = None
     capsules: tuple[Capsule, ...] = ()
     package_dirs: tuple[str, ...] = ()
+    source_urdf_path: Path | None = None
 
     def pinocchio_model(self) -> pin.Model:
         """Build a fresh pinocchio model: URDF, free flyer ``root_joint``, :attr:`extra_frames`."""
