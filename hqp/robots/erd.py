@@ -52,6 +52,7 @@ from hqp.robots.description import (
     write_if_changed,
 )
 from hqp.robots.robot import (
+    Capsule,
     ContactSurface,
     Robot,
     build_pinocchio_model,
@@ -104,6 +105,7 @@ class _Spec:
     sole_half: tuple[float, float]
     seed: dict[str, float]
     head: str | None
+    limb_radius: float
 
 
 G1 = _Spec(
@@ -119,6 +121,7 @@ G1 = _Spec(
         "head": ("d435_link", (0.0, 0.0, 0.0)),
     },
     sole_half=(0.085, 0.03),
+    limb_radius=0.035,
     seed={
         "left_hip_pitch_joint": -0.2, "left_knee_joint": 0.4, "left_ankle_pitch_joint": -0.2,
         "right_hip_pitch_joint": -0.2, "right_knee_joint": 0.4, "right_ankle_pitch_joint": -0.2,
@@ -142,6 +145,7 @@ TALOS = _Spec(
         "head": ("head_2_link", (0.0, 0.0, 0.0)),
     },
     sole_half=(0.1104, 0.0672),
+    limb_radius=0.06,
     seed={},
     head="head",
 )
@@ -264,6 +268,48 @@ def generate(spec: _Spec, model: pin.Model, q_standing: np.ndarray) -> tuple[str
     return to_urdf(description), to_mjcf(description)
 
 
+def capsules(spec: _Spec, model: pin.Model) -> tuple[Capsule, ...]:
+    """Capsule proxies of the limbs: one per link between consecutive joints, plus hands and feet.
+
+    Each leg and arm link gets a capsule from its joint to its child joint (links of zero
+    length are skipped), the last link of each chain a capsule to the hand frame, and each
+    foot a capsule along its sole (heel to toe, resting on the sole). Radius:
+    ``spec.limb_radius`` (hands: 0.8 of it; feet: a third of the sole width).
+    """
+    body_names = _body_names(model)
+    r = spec.limb_radius
+    ends = {model.frames[model.getFrameId(f)].parentJoint: f for f in ("left_hand", "right_hand")}
+    chains: set[int] = set()
+    for frame in ("left_foot", "right_foot", "left_hand", "right_hand"):
+        joint = model.frames[model.getFrameId(frame)].parentJoint
+        while joint > 1:
+            chains.add(joint)
+            joint = model.parents[joint]
+    out: list[Capsule] = []
+    for j in sorted(chains):
+        children = [c for c in range(j + 1, model.njoints) if model.parents[c] == j and c in chains]
+        targets = [model.jointPlacements[c].translation for c in children]
+        radii = [r] * len(targets)
+        if j in ends:
+            targets.append(model.frames[model.getFrameId(ends[j])].placement.translation)
+            radii.append(0.8 * r)
+        for k, (b, radius) in enumerate(zip(targets, radii)):
+            if np.linalg.norm(b) < 0.03:
+                continue
+            out.append(Capsule(f"{body_names[j]}_{k}", body_names[j], (0.0, 0.0, 0.0),
+                               (float(b[0]), float(b[1]), float(b[2])), radius))
+    half_x, half_y = spec.sole_half
+    radius = half_y / 1.5
+    for side in ("left", "right"):
+        frame = model.frames[model.getFrameId(f"{side}_foot")]
+        a = frame.placement.act(np.array([-half_x + radius, 0.0, radius]))
+        b = frame.placement.act(np.array([half_x - radius, 0.0, radius]))
+        out.append(Capsule(f"{side}_foot", body_names[frame.parentJoint],
+                           (float(a[0]), float(a[1]), float(a[2])),
+                           (float(b[0]), float(b[1]), float(b[2])), radius))
+    return tuple(out)
+
+
 def cache_dir() -> Path:
     """Directory of generated files: ``$HQP_CACHE_DIR`` or ``<tempdir>/hqp-<version>``."""
     env = os.environ.get("HQP_CACHE_DIR")
@@ -323,5 +369,6 @@ def robot(name: str) -> Robot:
         q_standing=q,
         standing_height=float(data.oMf[model.getFrameId("pelvis")].translation[2]),
         source_urdf_path=source,
+        capsules=capsules(spec, model),
         package_dirs=(str(erd_share_dir()),),
     )
