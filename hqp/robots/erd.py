@@ -2,11 +2,18 @@
 
 The URDFs ship with the ``example-robot-data`` package (no Python module in
 the installed version: the files live under
-``<site-packages>/cmeel.prefix/share/example-robot-data/robots/``). Their
-MuJoCo models are generated at first use from pinocchio's model of the URDF
-(fixed links merged), so MuJoCo carries exactly pinocchio's inertias and joint
-placements, into a cache directory (``$HQP_CACHE_DIR`` or
-``<tempdir>/hqp-<version>``) keyed by a hash of the inputs:
+``<site-packages>/cmeel.prefix/share/example-robot-data/robots/``; set
+``EXAMPLE_ROBOT_DATA_SHARE`` to the ``share`` directory to override). At first
+use, one :class:`~hqp.robots.description.Description` is built from
+pinocchio's model of the source URDF (fixed links merged) plus the uniform
+frames, and both files are generated from it into a cache directory
+(``$HQP_CACHE_DIR`` or ``<tempdir>/hqp-<version>``), keyed by a hash of the
+inputs; example-robot-data's own files are never copied into the project.
+
+The generated URDF (:attr:`Robot.urdf_path`, the controller's and PlaCo's
+model) has no meshes, and the uniform frames as links on fixed joints; tests
+check that it has the source URDF's inertias, placements and limits. The
+generated MJCF carries exactly the same inertias and joint placements, with:
 
 * a free joint on the root, one motor per actuated joint (no control clipping;
   the torque limits are the URDF ``effort`` and live in the controller's model);
@@ -173,25 +180,16 @@ def _seed(spec: _Spec, model: pin.Model) -> np.ndarray:
 
 
 def _standing(spec: _Spec, model: pin.Model) -> np.ndarray:
-    data = model.createData()
+    """Standing pose: base translation and leg joints move, base stays upright, rest as seeded."""
     legs: set[int] = set()
     for foot in ("left_foot", "right_foot"):
         joint = model.frames[model.getFrameId(foot)].parentJoint
         while joint > 1:
             legs.add(model.joints[joint].idx_v)
             joint = model.parents[joint]
-    del data
-
-    def weight(i: int) -> float:
-        if i < 3:
-            return 1e-2
-        if i < 6:
-            return 1e3
-        return 1.0 if i in legs else 1e3
-
     return solve_standing(
         model, _seed(spec, model), ("left_foot", "right_foot"),
-        weight=weight, active=lambda i: i < 6 or i in legs,
+        weight=lambda i: 1e-2 if i < 3 else 1.0, active=lambda i: i < 3 or i in legs,
     )
 
 

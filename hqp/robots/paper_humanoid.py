@@ -367,15 +367,10 @@ def standing_configuration(model: pin.Model) -> np.ndarray:
             for k in ("hip_yaw", "hip_roll", "hip_pitch", "knee", "ankle_pitch", "ankle_roll")}
     leg_dofs = {model.joints[model.getJointId(n)].idx_v for n in legs}
 
-    def weight(i: int) -> float:
-        if i < 3:
-            return 1e-2  # base translation: free
-        if i < 6:
-            return 1e3  # base orientation: keep upright
-        return 1.0 if i in leg_dofs else 1e3
-
+    # Base translation (cheap) and leg joints move; the base stays upright, the rest as seeded.
     return solve_standing(model, seed_configuration(model), ("left_foot", "right_foot"),
-                          weight=weight, active=lambda i: i < 6 or i in leg_dofs)
+                          weight=lambda i: 1e-2 if i < 3 else 1.0,
+                          active=lambda i: i < 3 or i in leg_dofs)
 
 
 def capsules() -> tuple[Capsule, ...]:
@@ -421,7 +416,9 @@ def generate() -> tuple[str, str]:
     model = pin.buildModelFromXML(urdf, pin.JointModelFreeFlyer(), ROOT_JOINT)
     q = standing_configuration(model)
     qpos = np.concatenate([q[:3], q[6:7], q[3:6], q[7:]])  # MuJoCo quaternion: w first
-    mjcf = to_mjcf(description({"standing": qpos}, root_height=float(q[2])))
+    # Rounded to 1e-10 so that solver round-off (1e-16) cannot change the committed file.
+    qpos = np.round(qpos, 10) + 0.0
+    mjcf = to_mjcf(description({"standing": qpos}, root_height=float(qpos[2])))
     return urdf, mjcf
 
 
