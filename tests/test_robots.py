@@ -330,6 +330,20 @@ def test_mujoco_model_matches_controller_model(robot: Robot) -> None:
     assert names == ["floor", "left_sole", "right_sole"]
     for g in colliding:
         assert mj.geom_condim[g] == 3
+    # The sole boxes are the contact surfaces: same half-lengths, bottom face centred on the
+    # sole frame (site), same friction.
+    data = mujoco.MjData(mj)
+    mujoco.mj_resetDataKeyframe(mj, data, mj.key("standing").id)
+    mujoco.mj_forward(mj, data)
+    for side in ("left", "right"):
+        contact = robot.contact(f"{side}_foot")
+        geom = mj.geom(f"{side}_sole")
+        np.testing.assert_allclose(geom.size[:2], [contact.half_length, contact.half_width])
+        np.testing.assert_allclose(geom.friction[0], contact.friction)
+        rot = data.geom(f"{side}_sole").xmat.reshape(3, 3)
+        bottom = data.geom(f"{side}_sole").xpos - rot[:, 2] * geom.size[2]
+        np.testing.assert_allclose(bottom, data.site(f"{side}_foot").xpos, atol=1e-9)
+        np.testing.assert_allclose(bottom[2], 0.0, atol=1e-9)
 
 
 @pytest.mark.parametrize("name", ["g1", "talos"])

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import numpy as np
 import pinocchio as pin
 
 from hqp.layout import ContactType
@@ -38,4 +37,4 @@ def robot() -> Robot:
     )
 
 
-__all__ = ["robot", "np"]
+__all__ = ["robot"]
