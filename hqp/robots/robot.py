@@ -12,6 +12,7 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pinocchio as pin
@@ -19,6 +20,9 @@ import pinocchio as pin
 from hqp.errors import HQPError, InvalidInput
 from hqp.layout import ContactType
 from hqp.model import RobotModel
+
+if TYPE_CHECKING:
+    import mujoco
 
 ROOT_JOINT = "root_joint"
 """Name of the free-flyer joint in every robot's pinocchio model."""
@@ -138,7 +142,7 @@ class Robot:
             torque_limits=self.torque_limits,
         )
 
-    def mujoco_model(self) -> object:
+    def mujoco_model(self) -> mujoco.MjModel:
         """Load a fresh ``mujoco.MjModel`` from :attr:`mjcf_path`."""
         import mujoco
 
