@@ -219,3 +219,17 @@ def test_collision_errors(robot: RobotModel) -> None:
     robot.update(robot.neutral(), np.zeros(robot.nv))
     rows = ObstacleAvoidance("obs", world, good).rows(robot, layout, 1e-3, 0.0)
     assert rows.n_in == 1
+
+
+def test_capsule_records_are_accepted() -> None:
+    from hqp.robots.robot import Capsule as RobotCapsule
+
+    record = RobotCapsule("shin", "rleg_elbow_body", (0.0, 0.0, 0.0), (0.0, 0.0, -0.3), 0.05)
+    proxy = CapsuleProxy.of(record)
+    assert proxy.frame == "rleg_elbow_body" and proxy.radius == 0.05
+    np.testing.assert_array_equal(proxy.point_b, [0.0, 0.0, -0.3])
+    assert CapsuleProxy.of(proxy) is proxy
+    task = SelfCollision("self", [(record, proxies()[0])])
+    assert task.pairs[0][0].frame == "rleg_elbow_body"
+    with pytest.raises(HQPError, match="not a capsule record"):
+        CapsuleProxy.of(object())

@@ -85,6 +85,24 @@ class CapsuleProxy:
             raise InvalidGain(f"{where}: radius must be finite and >= 0, got {self.radius}")
         object.__setattr__(self, "radius", r)
 
+    @classmethod
+    def of(cls, capsule: object) -> CapsuleProxy:
+        """Convert a capsule record (``name, frame, a, b, radius``, e.g. a robot's capsules).
+
+        A :class:`CapsuleProxy` is returned unchanged.
+
+        Raises:
+            InvalidInput: The record lacks one of those attributes.
+
+        """
+        if isinstance(capsule, CapsuleProxy):
+            return capsule
+        try:
+            fields = [getattr(capsule, k) for k in ("name", "frame", "a", "b", "radius")]
+        except AttributeError as exc:
+            raise InvalidInput(f"CapsuleProxy: not a capsule record: {exc}") from None
+        return cls(*fields)
+
 
 @dataclass(frozen=True)
 class _Segment:
@@ -326,7 +344,8 @@ class ObstacleAvoidance(_DistanceTask):
     Args:
         name: Task name.
         world: World holding the obstacles (read at each step: moving obstacles).
-        proxies: Robot capsules.
+        proxies: Robot capsules (:class:`CapsuleProxy` or records accepted by
+            :meth:`CapsuleProxy.of`, e.g. ``robot.capsules``).
         obstacles: Names of the obstacles to avoid (default: every obstacle of
             the world at each step; spheres and capsules only).
         d_safe: Safety distance [m] (>= 0).
@@ -359,7 +378,7 @@ class ObstacleAvoidance(_DistanceTask):
         if not proxies:
             raise InvalidInput(f"{self.where()}: no capsule proxies")
         self.world = world
-        self.proxies = tuple(proxies)
+        self.proxies = tuple(CapsuleProxy.of(p) for p in proxies)
         self.obstacles = None if obstacles is None else tuple(obstacles)
         for obstacle_name in self.obstacles or ():
             self._obstacle(obstacle_name)
@@ -389,7 +408,8 @@ class SelfCollision(_DistanceTask):
 
     Args:
         name: Task name.
-        pairs: Pairs of robot capsules.
+        pairs: Pairs of robot capsules (:class:`CapsuleProxy` or records
+            accepted by :meth:`CapsuleProxy.of`).
         d_safe: Safety distance [m] (>= 0).
         d_influence: Distance below which the rows act [m] (> ``d_safe``).
         xi: Approach speed allowed at ``d_influence`` [m/s] (> 0).
@@ -416,6 +436,7 @@ class SelfCollision(_DistanceTask):
         super().__init__(name, d_safe, d_influence, xi, kv, weight)
         if not pairs:
             raise InvalidInput(f"{self.where()}: no capsule pairs")
+        pairs = [(CapsuleProxy.of(a), CapsuleProxy.of(b)) for a, b in pairs]
         for a, b in pairs:
             if a.frame == b.frame:
                 raise InvalidInput(

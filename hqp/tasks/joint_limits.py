@@ -171,8 +171,11 @@ class JointLimits(Task):
         name: Task name.
         qdd_max: Maximum deceleration ``A`` per actuated joint ``(na,)`` or a
             scalar [rad/s^2] (> 0, ``inf`` allowed); ``None``: estimated at each
-            state by :func:`max_acceleration_from_torques` with ``margin``.
+            state by :func:`max_acceleration_from_torques` with ``margin`` and
+            ``supports``.
         margin: Fraction used by the estimate (``qdd_max=None`` only).
+        supports: Frames held by the environment, for the estimate
+            (``qdd_max=None`` only).
         position_margin: Distance kept from the model's position limits [rad or m] (>= 0).
         velocity_scale: Fraction of the model's velocity limits used, in ``(0, 1]``.
         weight: Weight within its level.
@@ -190,6 +193,7 @@ class JointLimits(Task):
         qdd_max: np.ndarray | float | None = None,
         *,
         margin: float = 0.5,
+        supports: Sequence[str] | None = None,
         position_margin: float = 0.0,
         velocity_scale: float = 1.0,
         weight: float = 1.0,
@@ -209,6 +213,7 @@ class JointLimits(Task):
         if not (0.0 < velocity_scale <= 1.0):
             raise InvalidGain(f"{w}: velocity_scale must be in (0, 1], got {velocity_scale}")
         self.margin = float(margin)
+        self.supports = None if supports is None else tuple(supports)
         self.position_margin = float(position_margin)
         self.velocity_scale = float(velocity_scale)
         self._violation = np.zeros(0)
@@ -221,7 +226,7 @@ class JointLimits(Task):
 
         """
         if self.qdd_max is None:
-            return max_acceleration_from_torques(state, self.margin)
+            return max_acceleration_from_torques(state, self.margin, self.supports)
         if self.qdd_max.size not in (1, state.na):
             raise InvalidGain(
                 f"{self.where()}: qdd_max has {self.qdd_max.size} entries, "
