@@ -87,10 +87,12 @@ class Behavior:
         planner: Trajectory generator providing ``plan.*`` (required when the spec
             declares one; see :mod:`hqp.behaviors.planners`).
         standing: Standing configuration ``(nq,)`` (``standing`` in goal expressions).
-        safety_steps: Consecutive infeasible control steps of a watched task before
-            the safety phase is entered (filters single-step flags).
+        safety_steps: Consecutive control steps a task's raw flag must hold before its
+            feasibility flag changes (filters single-step flags).
         infeasible_residual: Residual below which a conflict is not counted as
-            infeasible [task units / s^2].
+            infeasible [task units / s^2]. A task is infeasible when it is in conflict
+            with a higher level (or, when the controller does not say which level it
+            yields to, in conflict) with a residual above this.
 
     Attributes:
         Phase: The :class:`enum.Enum` of the phases.
@@ -137,6 +139,8 @@ class Behavior:
         self._flags: dict[str, bool] = {}
         self._bad_steps: dict[str, int] = {}
         self._started = False
+        self._errors: dict[str, dict[str, dict[str, float]]] = {}
+        self._entered: list[tuple[str, float]] = []
 
     # -- public -----------------------------------------------------------------------------
 
@@ -144,6 +148,20 @@ class Behavior:
     def phase_spec(self) -> PhaseSpec:
         """Description of the active phase."""
         return self.spec.phases[self.phase.value]
+
+    def metrics(self) -> dict[str, Any]:
+        """Per phase: when it was entered, and each task's smallest and last error norm.
+
+        Errors are in task units (m for positions, rad for orientations, ...), measured at
+        the control steps of the phase (``error()`` of the task after its rows were built).
+        """
+        return {
+            "phase_times": [{"phase": p, "t": round(t, 4)} for p, t in self._entered],
+            "task_errors": {
+                p: {k: {m: round(v, 5) for m, v in d.items()} for k, d in tasks.items()}
+                for p, tasks in self._errors.items()
+            },
+        }
 
     def start(self, state: RobotState, t: float) -> None:
         """Enter the initial phase at time ``t`` [s] (the controller's model is updated here)."""
@@ -170,6 +188,12 @@ class Behavior:
         if not self._started:
             self.start(state, t)
             return
+        record = self._errors.setdefault(self.phase.value, {})
+        for tname in self._levels:
+            e = self._error(tname)
+            d = record.setdefault(tname, {"min": e, "final": e})
+            d["min"] = min(d["min"], e)
+            d["final"] = e
         safety_task = self._feasibility(report, t)
         phase = self.phase_spec
         target = None
@@ -206,20 +230,24 @@ class Behavior:
         for status in report.tasks:
             if status.name not in self.tasks:
                 continue
-            bad = (
+            raw = (
                 status.status is Feasibility.CONFLICT
-                and status.yields_to is not None
-                and status.yields_to < status.level
+                and (status.yields_to is None or status.yields_to < status.level)
                 and status.residual > self.infeasible_residual
             )
-            if bad != self._flags.get(status.name, False):
+            # debounce: a flag changes after ``safety_steps`` consecutive steps
+            count = self._bad_steps.get(status.name, 0)
+            count = count + 1 if raw != self._flags.get(status.name, False) else 0
+            self._bad_steps[status.name] = count
+            if count >= self.safety_steps:
+                bad = raw
                 self._flags[status.name] = bad
+                self._bad_steps[status.name] = 0
                 self.events.append(FeasibilityEvent(
                     t, phase.name, status.name, "infeasible" if bad else "feasible",
                     status.level, status.yields_to, status.residual))
-            self._bad_steps[status.name] = self._bad_steps.get(status.name, 0) + 1 if bad else 0
             if (status.name in phase.watch and trigger is None
-                    and self._bad_steps[status.name] >= self.safety_steps):
+                    and self._flags.get(status.name, False)):
                 trigger = status.name
         return trigger
 
@@ -258,6 +286,7 @@ class Behavior:
         self.phase = self.Phase(name)
         self.phase_start = float(t)
         self.visited.append(name)
+        self._entered.append((name, float(t) - self.t0))
         logger.info("t=%.3f s: phase %s", t, name)
 
     def _env(self, state: RobotState, t: float, initial: Any) -> dict[str, Any]:
@@ -296,7 +325,7 @@ class Behavior:
         return env
 
     def _pose(self, name: str) -> np.ndarray:
-        """Configuration ``(nq,)``: the standing one with the captured pose's joints."""
+        """Return the configuration ``(nq,)``: the standing one with the captured pose's joints."""
         model = self.controller.model
         q = (self.standing if self.standing is not None else model.q).copy()
         for joint, value in self.spec.poses[name].items():

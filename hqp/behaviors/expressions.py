@@ -89,7 +89,7 @@ class Namespace:
             raise ExpressionError(f"unknown name {self._kind}.{name}; known: {known}") from None
 
     def names(self) -> list[str]:
-        """The names it holds."""
+        """Return the names it holds."""
         return sorted(self._values)
 
 

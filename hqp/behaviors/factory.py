@@ -22,7 +22,7 @@ _GAIN_KEYS = ("kp", "kv", "max_velocity", "max_acceleration")
 
 
 def _rotation(value: Any, where: str) -> np.ndarray:
-    """A rotation matrix from roll-pitch-yaw ``(3,)`` [rad] or a matrix ``(3, 3)``."""
+    """Return a rotation matrix from roll-pitch-yaw ``(3,)`` [rad] or a matrix ``(3, 3)``."""
     arr = np.asarray(value, dtype=float)
     if arr.shape == (3,):
         return pin.rpy.rpyToMatrix(arr)
@@ -109,7 +109,7 @@ class TaskFactory:
             raise BehaviorFileError(f"task {spec.name!r}: {exc}") from None
 
     def current(self, task: Task, spec: TaskSpec, model: RobotModel) -> Any:
-        """The task's current value (``initial`` in goal expressions), ``None`` if it has none."""
+        """Return the task's current value (``initial`` in goals), ``None`` if it has none."""
         if spec.type == "posture":
             return model.q.copy()
         value = getattr(task, "value", None)

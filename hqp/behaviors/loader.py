@@ -78,7 +78,8 @@ class _Ctx:
     def error(self, key: tuple[str | int, ...], message: str) -> BehaviorFileError:
         name = str(self.path) if self.path is not None else "<behavior>"
         line = self.locate(key)
-        dotted = ".".join(str(k) if isinstance(k, str) else f"[{k}]" for k in key).replace(".[", "[")
+        dotted = ".".join(str(k) if isinstance(k, str) else f"[{k}]" for k in key)
+        dotted = dotted.replace(".[", "[")
         where = f"{name}:{line}" if line is not None else name
         return BehaviorFileError(f"{where}: {dotted}: {message}" if key else f"{where}: {message}")
 
@@ -243,7 +244,8 @@ def parse_behavior(
             try:
                 default_arr = np.array(default, dtype=float)
             except (TypeError, ValueError):
-                raise ctx.error((*key, "default"), "expected a number or a list of numbers") from None
+                raise ctx.error((*key, "default"),
+                                "expected a number or a list of numbers") from None
             if not np.isfinite(default_arr).all():
                 raise ctx.error((*key, "default"), "expected finite numbers")
         else:
@@ -417,7 +419,8 @@ def _get(ctx: _Ctx, table: Mapping[str, Any], key: tuple[str | int, ...], kind: 
             raise ctx.error(key, "missing key")
         return default
     value = table[name]
-    if kind in (int, float, (int, float)) and isinstance(value, bool) or not isinstance(value, kind):
+    numeric = kind in (int, float, (int, float))
+    if numeric and isinstance(value, bool) or not isinstance(value, kind):
         kinds = kind if isinstance(kind, tuple) else (kind,)
         want = " or ".join(k.__name__ for k in kinds)
         raise ctx.error(key, f"expected {want}, got {type(value).__name__} {value!r}")
@@ -433,9 +436,11 @@ def _positive(ctx: _Ctx, table: Mapping[str, Any], key: tuple[str | int, ...], d
     return value
 
 
-def _check_frame(ctx: _Ctx, key: tuple[str | int, ...], frame: str, frames: set[str] | None) -> None:
+def _check_frame(ctx: _Ctx, key: tuple[str | int, ...], frame: str,
+                 frames: set[str] | None) -> None:
     if frames is not None and frame not in frames:
-        raise ctx.error(key, f"unknown frame {frame!r}; expected one of {', '.join(sorted(frames))}")
+        raise ctx.error(key, f"unknown frame {frame!r}; expected one of "
+                        f"{', '.join(sorted(frames))}")
 
 
 def _level(ctx: _Ctx, key: tuple[str | int, ...], value: Any) -> int | Category:
@@ -501,7 +506,7 @@ def _task(ctx: _Ctx, env: _NameCheck, tname: str, ttab: Any, frames: set[str] | 
 
 
 def _goal(ctx: _Ctx, env: _NameCheck, key: tuple[str | int, ...], value: Any) -> Expression:
-    """A goal: a number, a list of numbers (constant) or an expression string."""
+    """Parse a goal: a number, a list of numbers (constant) or an expression string."""
     if isinstance(value, str):
         return env.expression(key, value, goal=True)
     try:

@@ -130,7 +130,7 @@ class PlacoWalkPlanner:
         return float(self.trajectory.t_end) if self.trajectory is not None else 0.0
 
     def outputs(self, t: float) -> dict[str, Any]:
-        """The ``plan.*`` values at behavior time ``t`` [s] (clamped to the plan)."""
+        """Return the ``plan.*`` values at behavior time ``t`` [s] (clamped to the plan)."""
         if self.trajectory is None:
             raise BehaviorFileError("placo_walk planner: outputs() before start()")
         if self._last is not None and self._last[0] == t:

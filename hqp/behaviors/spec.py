@@ -199,6 +199,6 @@ class BehaviorSpec:
     inputs_file: Path | None = None
 
     def phase_enum(self) -> type[enum.Enum]:
-        """An :class:`enum.Enum` of the phases (values are the phase names, in file order)."""
+        """Return an :class:`enum.Enum` of the phases (values: the phase names, in file order)."""
         cls_name = "".join(p.capitalize() for p in self.name.replace("-", "_").split("_")) + "Phase"
         return enum.Enum(cls_name, [(p.upper().replace("-", "_"), p) for p in self.phases])
