@@ -191,6 +191,8 @@ class Behavior:
         record = self._errors.setdefault(self.phase.value, {})
         for tname in self._levels:
             e = self._error(tname)
+            if not np.isfinite(e):
+                continue
             d = record.setdefault(tname, {"min": e, "final": e})
             d["min"] = min(d["min"], e)
             d["final"] = e
@@ -333,8 +335,9 @@ class Behavior:
         return q
 
     def _error(self, name: str) -> float:
+        """Norm of a task's error at its last rows (``inf`` before its rows were built)."""
         err = np.asarray(self.tasks[name].error(), dtype=float)
-        return float(np.linalg.norm(err)) if err.size else 0.0
+        return float(np.linalg.norm(err)) if err.size else float("inf")
 
     def _set_goals(self, state: RobotState, t: float) -> None:
         phase = self.phase_spec
