@@ -166,8 +166,8 @@ def test_safety_phase_on_infeasible_watched_task(setup):
     behavior.update(state, 0.5, None)
     levels = {n: ctrl.stack.level_of_task(n) for n in ("balance", "hand", "hip", "posture")}
     # the posture is in conflict (not watched): nothing happens
-    rep = report({"posture": (Feasibility.CONFLICT, 5.0, 4), "hip": (Feasibility.SATISFIED, 0, None)},
-                 levels)
+    rep = report({"posture": (Feasibility.CONFLICT, 5.0, 4),
+                  "hip": (Feasibility.SATISFIED, 0, None)}, levels)
     for k in range(5):
         behavior.update(state, 0.6 + 1e-3 * k, rep)
     assert behavior.phase is behavior.Phase.REACH
