@@ -28,7 +28,7 @@ import abc
 import enum
 import logging
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
@@ -36,6 +36,7 @@ import numpy as np
 
 if TYPE_CHECKING:
     from hqp.model import RobotModel, RobotState
+    from hqp.robots import Robot
     from hqp.solver import Solution
     from hqp.stack import BuiltStack, Stack, TaskSpan
     from hqp.tasks.base import Category, Rows, Task
@@ -380,6 +381,7 @@ class WholeBodyController(Controller):
         self._blend_start: float | None = None
         self._blend_delta = np.zeros(robot_model.na)
         self._blend_notes: tuple[str, ...] = ()
+        self._yield_guess: dict[str, int] = {}
 
     # -- one step ---------------------------------------------------------------------------
 
@@ -577,16 +579,17 @@ class WholeBodyController(Controller):
                         mats.append(rows.C[idx])
                 r = np.concatenate(parts) if parts else np.zeros(0)
                 residual = float(np.linalg.norm(r))
-                if full:
-                    sigma = float("nan")
-                    if mats:
-                        P = np.vstack(mats) @ Z
-                        m_rows = P.shape[0]
-                        if m_rows > P.shape[1]:
-                            sigma = 0.0
-                        else:
-                            sv = np.linalg.svd(P, compute_uv=False)
-                            sigma = float(sv[m_rows - 1]) if sv.size >= m_rows else 0.0
+                sigma = float("nan")
+                if rows.A is None:
+                    pass  # inequality rows only: satisfied or in conflict, never singular
+                elif full:
+                    P = np.vstack(mats) @ Z
+                    m_rows = P.shape[0]
+                    if m_rows > P.shape[1]:
+                        sigma = 0.0
+                    else:
+                        sv = np.linalg.svd(P, compute_uv=False)
+                        sigma = float(sv[m_rows - 1]) if sv.size >= m_rows else 0.0
                 else:
                     sigma = float(rep.sigma_min)
                 yields_to = None
@@ -609,6 +612,18 @@ class WholeBodyController(Controller):
                     Z = Z @ _null_basis(np.vstack(mats) @ Z, rank_tol)
                 bases.append(Z)
         return tuple(out)
+
+    @staticmethod
+    def _bisect_blocked(blocked: Callable[[int], bool], k: int) -> int:
+        """First ``j`` in ``[-1, k)`` with ``blocked(j)`` (monotone), or ``k`` when none."""
+        lo, hi = -1, k  # answer in [lo, hi]
+        while lo < hi:
+            mid = (lo + hi) // 2
+            if blocked(mid):
+                hi = mid
+            else:
+                lo = mid + 1
+        return lo
 
     def _yields_to(self, rows: Rows, r: np.ndarray, bases: list[np.ndarray],
                    built: BuiltStack, span: TaskSpan) -> int | None:
@@ -644,9 +659,131 @@ class WholeBodyController(Controller):
             U = U[:, sv > 1e-9 * scale]
             return float(np.linalg.norm(r0 - U @ (U.T @ r0)))
 
-        if reachable(np.eye(A.shape[1])) > self.tolerance:
+        # The reachable residual grows with j: check the last answer and its neighbour first
+        # (one or two evaluations at steady state), then bisect.
+        k = span.built_level
+        tol = self.tolerance
+
+        def blocked(j: int) -> bool:  # j = -1: the whole space
+            Z = np.eye(A.shape[1]) if j < 0 else bases[j]
+            return reachable(Z) > tol
+
+        guess = self._yield_guess.get(span.name)
+        if guess is not None and -1 <= guess < k:
+            if blocked(guess) and (guess == -1 or not blocked(guess - 1)):
+                first = guess
+            elif guess + 1 < k and not blocked(guess) and blocked(guess + 1):
+                first = guess + 1
+            else:
+                first = self._bisect_blocked(blocked, k)
+        else:
+            first = self._bisect_blocked(blocked, k)
+        self._yield_guess[span.name] = first
+        if first == -1:
             return None
-        for j in range(span.built_level):
-            if reachable(bases[j]) > self.tolerance:
-                return built.level_index[j]
+        if first < k:
+            return built.level_index[first]
         return span.level
+
+
+def standing_stack(
+    robot: Robot,
+    model: RobotModel,
+    *,
+    com_kp: float = 100.0,
+    orientation_kp: float = 100.0,
+    posture_kp: float = 50.0,
+    friction: float | None = None,
+    sole_margin: float = 0.9,
+    torque_scale: float = 1.0,
+    contact_kd: float = 0.0,
+) -> tuple[Stack, list[Task]]:
+    """Build the stack of a humanoid standing on both feet, and its contacts.
+
+    Levels (default categories): physics (floating-base dynamics, both soles as rigid surface
+    contacts); contact and actuation limits (friction pyramids, unilateral forces, centre of
+    pressure in the soles, yaw torques, torque limits); viable joint limits; balance (centre of
+    mass over the centre of the feet at its standing height); operational (trunk orientation
+    upright as in the standing configuration); posture (the standing configuration).
+
+    Args:
+        robot: The bundled robot (feet, contact surfaces, ``q_standing``, ``trunk`` frame).
+        model: Its controller model.
+        com_kp: Stiffness of the centre-of-mass task [1/s^2] (critical damping).
+        orientation_kp: Stiffness of the trunk orientation task [1/s^2].
+        posture_kp: Stiffness of the posture task [1/s^2].
+        friction: Friction coefficient of the contact model (default: 0.8 x the sole's).
+        sole_margin: Fraction of the sole's half-length and half-width given to the centre
+            of pressure (a margin against tipping on the edge).
+        torque_scale: Fraction of the torque limits the controller may use.
+        contact_kd: Damping of the contacts' drift stabilisation [1/s].
+
+    Returns:
+        ``(stack, contacts)``; pass both to :class:`WholeBodyController`.
+
+    """
+    from hqp.layout import ContactType
+    from hqp.stack import Stack
+    from hqp.tasks.base import Category
+    from hqp.tasks.com import CoMTask, support_center
+    from hqp.tasks.contact import Contact
+    from hqp.tasks.dynamics import FloatingBaseDynamics
+    from hqp.tasks.joint_limits import JointLimits, max_acceleration_from_torques
+    from hqp.tasks.orientation import OrientationTask
+    from hqp.tasks.posture import PostureTask
+    from hqp.tasks.torque_limits import TorqueLimits
+
+    model.update(robot.q_standing, np.zeros(model.nv))
+    stack = Stack()
+    stack.add(FloatingBaseDynamics())
+    contacts: list[Task] = []
+    for foot in robot.feet:
+        surface = robot.contact(foot)
+        mu = 0.8 * surface.friction if friction is None else friction
+        contacts.append(Contact(
+            foot, surface.frame, ContactType.SURFACE, mu=mu,
+            half_length=sole_margin * surface.half_length,
+            half_width=sole_margin * surface.half_width, kd=contact_kd, model=model,
+        ))
+    stack.add(TorqueLimits(scale=torque_scale), Category.CONTACT_LIMITS)
+    qdd_max = max_acceleration_from_torques(model, margin=0.5, supports=list(robot.feet))
+    stack.add(JointLimits(qdd_max=qdd_max))
+    com = CoMTask(model, kp=com_kp)
+    centre = support_center(model, list(robot.feet))
+    com.set_goal(np.array([centre[0], centre[1], model.com[2]]))
+    stack.add(com)
+    trunk = OrientationTask(model, "trunk", kp=orientation_kp)
+    trunk.set_goal(model.frame_placement("trunk").rotation.copy())
+    stack.add(trunk)
+    posture = PostureTask(model, kp=posture_kp)
+    posture.set_configuration(robot.q_standing, model)
+    stack.add(posture)
+    return stack, contacts
+
+
+def standing_controller(
+    robot: Robot,
+    *,
+    dt: float = 0.001,
+    backend: str = "proxsuite",
+    algorithm: str = "basis",
+    diagnostics: str = "full",
+    **gains: float,
+) -> WholeBodyController:
+    """Build a :class:`WholeBodyController` holding a humanoid standing on both feet.
+
+    See :func:`standing_stack` for the levels and ``gains``.
+
+    Args:
+        robot: The bundled robot (``hqp.robots.load(name)``).
+        dt: Control period [s].
+        backend: QP backend.
+        algorithm: ``"basis"`` or ``"cascade"``.
+        diagnostics: ``"full"`` or ``"residuals"`` (see :class:`WholeBodyController`).
+        **gains: Keyword arguments of :func:`standing_stack`.
+
+    """
+    model = robot.model()
+    stack, contacts = standing_stack(robot, model, **gains)
+    return WholeBodyController(model, contacts, stack, dt=dt, backend=backend,
+                               algorithm=algorithm, diagnostics=diagnostics)

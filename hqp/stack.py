@@ -19,8 +19,9 @@ Changes at runtime, without a jump in the motion:
   solution satisfies the new task exactly, so it is still the lexicographic optimum (levels
   above are unchanged; at the task's level the added cost is zero at ``x_prev``; levels below
   are optimised over a subset that still contains it), and the torques start continuous.
-  The task's own PD reference is the goal it ramps to (tasks with a goal trajectory, e.g. the
-  minimum-jerk interpolator of :mod:`hqp.tasks.reference`, can also start at the current value).
+  Besides, a tracking task with a fixed goal and ``move_to`` (the primitives of
+  :mod:`hqp.tasks`) starts from zero error: its goal starts at the current value and follows a
+  minimum-jerk trajectory to the requested goal over the same ``ramp_time``.
 * **Releasing a contact** first unloads it: a row ``n^T f <= f_max(t)`` (``n`` the contact
   normal, world axes) at the contact-limits level, with ``f_max`` falling from the normal force
   at the start of unloading to zero along a minimum-jerk profile over ``unload_time``; then the
@@ -41,7 +42,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from hqp.errors import InvalidInput, InvalidLevel, UnknownName
+from hqp.errors import HQPError, InvalidInput, InvalidLevel, UnknownName
 from hqp.layout import ContactType
 from hqp.tasks.base import Category, Rows, Task
 
@@ -78,6 +79,7 @@ class _TaskEntry:
     added_at: float
     ramp_time: float
     contact: str | None = None
+    goal_ramp_pending: bool = False
 
 
 @dataclass
@@ -312,7 +314,8 @@ class Stack:
         index = self.level_of(level, task)
         self._tasks.append(
             _TaskEntry(task, index, -math.inf if t is None else float(t),
-                       0.0 if t is None else ramp, contact)
+                       0.0 if t is None else ramp, contact,
+                       goal_ramp_pending=t is not None and ramp > 0.0)
         )
 
     def remove(self, name: str, *, t: float = 0.0) -> Task:
@@ -529,6 +532,9 @@ class Stack:
                 and not self._self_managed(entry.contact)
             ):
                 continue
+            if entry.goal_ramp_pending:
+                entry.goal_ramp_pending = False
+                _ramp_goal(entry.task, model, entry.ramp_time, t)
             rows = entry.task.rows(model, layout, dt, t)
             _check_columns(rows, n, entry.task.where())
             s = 1.0
@@ -609,6 +615,23 @@ class Stack:
                     (f"{c.name}/unload", Rows(C=C, lower=np.array([-np.inf]),
                                               upper=np.array([fmax])), 1.0, 1.0 - s, True)
                 )
+
+
+def _ramp_goal(task: Task, model: RobotModel, duration: float, t: float) -> None:
+    """Start a tracking task's goal at its current value, min-jerk to its goal over ``duration``.
+
+    Applies to tasks with a fixed goal and ``move_to(state, goal, duration, t0)`` (the tracking
+    primitives of :mod:`hqp.tasks`); a task following its own trajectory is left alone.
+    """
+    move_to = getattr(task, "move_to", None)
+    goal_at = getattr(task, "goal_at", None)
+    if move_to is None or goal_at is None or getattr(task, "trajectory", None) is not None:
+        return
+    try:
+        goal = goal_at(t).position
+    except HQPError:
+        return  # no goal set: nothing to ramp
+    move_to(model, goal, duration, t)
 
 
 def _check_columns(rows: Rows, n: int, where: str) -> None:

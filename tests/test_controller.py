@@ -25,12 +25,7 @@ from hqp.tasks.dynamics import FloatingBaseDynamics
 DT = 1e-3
 
 
-PROXSUITE_BUG = pytest.mark.xfail(
-    reason="hqp.solver proxsuite backend: false PROXQP_PRIMAL_INFEASIBLE on a feasible "
-    "carried-inequality QP (the basis algorithm then uses the unconverged point)",
-    strict=False,
-)
-BACKENDS = [pytest.param("proxsuite", marks=PROXSUITE_BUG), "daqp"]
+BACKENDS = ["proxsuite", "daqp"]
 
 
 def make(extra=(), posture=True, backend="proxsuite", **kwargs):

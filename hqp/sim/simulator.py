@@ -1,0 +1,311 @@
+"""MuJoCo execution of joint torques: the robot's MJCF, motor actuators, contact sensing.
+
+The simulator is the "real robot" of hqp: it loads the robot's MuJoCo model (1 kHz,
+``implicitfast`` by default), applies the commanded torques through the motor actuators, and
+reports a :class:`~hqp.model.RobotState` in pinocchio's convention (through the one state
+conversion of :mod:`hqp.sim.convert`). It does not hide the controller's faults:
+
+* torques beyond the limits (the robot's controller-model limits, and the actuators' own
+  ``ctrlrange`` / ``forcerange`` where MuJoCo limits them) are clipped as a motor would, but
+  every clipped entry is counted (:attr:`Simulator.clip_count`) and logged, so tests can
+  assert there was none;
+* contact state is read from MuJoCo (which geoms touch the floor, foot slip and lift-off, the
+  centre of pressure of the floor contact forces), for logs and tests only, never for the
+  controller's model.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from hqp.errors import InvalidInput, check_array
+from hqp.model import RobotState
+
+if TYPE_CHECKING:
+    from hqp.robots import Robot
+
+logger = logging.getLogger(__name__)
+
+FALL_HEIGHT_RATIO = 0.6
+"""A robot has fallen when its pelvis is below this fraction of its standing height."""
+
+
+@dataclass(frozen=True)
+class ContactReading:
+    """Contact state read from MuJoCo at one instant.
+
+    Attributes:
+        foot_contact: Whether each foot (``robot.feet`` order) touches the floor.
+        foot_position: World position of each foot site ``(nfeet, 3)`` [m].
+        other_contact: Names of the bodies other than the feet that touch the floor.
+        normal_force: Total normal force of the floor on each foot ``(nfeet,)`` [N].
+        cop: Centre of pressure of all floor contact forces ``(2,)`` [m] (``nan`` if none).
+
+    """
+
+    foot_contact: np.ndarray
+    foot_position: np.ndarray
+    other_contact: tuple[str, ...]
+    normal_force: np.ndarray
+    cop: np.ndarray
+
+
+class Simulator:
+    """A MuJoCo simulation of a bundled robot driven by joint torques.
+
+    Args:
+        robot: The robot (its ``mjcf_path``, feet, standing configuration).
+        dt: Simulation time step [s] (default 1 ms).
+        integrator: MuJoCo integrator name (default ``"implicitfast"``).
+        torque_limits: Limits of the commanded torques ``(na,)`` [N m], in the controller
+            model's joint order (default: the robot model's ``tau_max``).
+
+    Raises:
+        InvalidInput: A non-positive time step, unknown integrator, or an actuated joint
+            without a motor.
+
+    """
+
+    def __init__(
+        self,
+        robot: Robot,
+        dt: float = 0.001,
+        integrator: str = "implicitfast",
+        torque_limits: np.ndarray | None = None,
+    ) -> None:
+        import mujoco
+
+        from hqp.sim import convert
+
+        if not np.isfinite(dt) or dt <= 0.0:
+            raise InvalidInput(f"Simulator: dt must be positive, got {dt}")
+        self.robot = robot
+        self.mj_model = robot.mujoco_model()
+        self.mj_data = mujoco.MjData(self.mj_model)
+        try:
+            self.mj_model.opt.integrator = getattr(
+                mujoco.mjtIntegrator, f"mjINT_{integrator.upper()}"
+            )
+        except AttributeError:
+            raise InvalidInput(f"Simulator: unknown MuJoCo integrator {integrator!r}") from None
+        self.mj_model.opt.timestep = float(dt)
+        self.dt = float(dt)
+        model = robot.model()
+        self.nq, self.nv, self.na = model.nq, model.nv, model.na
+        self.joint_names = model.joint_names
+        self.converter = convert.StateMap(model, self.mj_model)
+        # Motor of each actuated joint, in the controller model's order.
+        motor_of_joint: dict[str, int] = {}
+        for a in range(self.mj_model.nu):
+            if self.mj_model.actuator_trntype[a] == mujoco.mjtTrn.mjTRN_JOINT:
+                j = int(self.mj_model.actuator_trnid[a, 0])
+                motor_of_joint[mujoco.mj_id2name(self.mj_model, mujoco.mjtObj.mjOBJ_JOINT, j)] = a
+        missing = [n for n in self.joint_names if n not in motor_of_joint]
+        if missing:
+            raise InvalidInput(f"Simulator: no motor for joints {missing} in {robot.mjcf_path}")
+        self.actuators = np.array([motor_of_joint[n] for n in self.joint_names])
+        gear = self.mj_model.actuator_gear[self.actuators, 0]
+        self.gear = np.where(gear == 0.0, 1.0, gear)
+        limits = model.tau_max if torque_limits is None else check_array(
+            torque_limits, (self.na,), "Simulator: torque_limits")
+        limits = np.array(limits, dtype=float)
+        for i, a in enumerate(self.actuators):
+            if self.mj_model.actuator_ctrllimited[a]:
+                lo, hi = self.mj_model.actuator_ctrlrange[a] * self.gear[i]
+                limits[i] = min(limits[i], abs(lo), abs(hi))
+            if self.mj_model.actuator_forcelimited[a]:
+                lo, hi = self.mj_model.actuator_forcerange[a]
+                limits[i] = min(limits[i], abs(lo), abs(hi))
+        self.torque_limits = limits
+        self.clip_count = 0
+        """Number of torque entries clipped so far."""
+        self.last_clipped = 0
+        """Number of torque entries clipped at the last step."""
+        self._push_body = 1  # the floating base body (first body after the world)
+        # Contact bookkeeping: floor geoms and the bodies of the feet.
+        self._floor_geoms = {g for g in range(self.mj_model.ngeom)
+                             if self.mj_model.geom_bodyid[g] == 0}
+        self._foot_sites = [mujoco.mj_name2id(self.mj_model, mujoco.mjtObj.mjOBJ_SITE, f)
+                            for f in robot.feet]
+        if min(self._foot_sites) < 0:
+            raise InvalidInput(f"Simulator: foot sites {robot.feet} missing in {robot.mjcf_path}")
+        self._foot_bodies = [int(self.mj_model.site_bodyid[s]) for s in self._foot_sites]
+        self._mujoco = mujoco
+        self.reset()
+
+    # -- state ------------------------------------------------------------------------------
+
+    @property
+    def time(self) -> float:
+        """Simulated time [s]."""
+        return float(self.mj_data.time)
+
+    def reset(self, q: np.ndarray | None = None, v: np.ndarray | None = None) -> None:
+        """Reset to a state (default: the robot's standing configuration at rest), time 0."""
+        mujoco = self._mujoco
+        mujoco.mj_resetData(self.mj_model, self.mj_data)
+        q = self.robot.q_standing if q is None else check_array(q, (self.nq,), "Simulator: q")
+        v = np.zeros(self.nv) if v is None else check_array(v, (self.nv,), "Simulator: v")
+        self.set_state(q, v)
+        self.clip_count = 0
+        self.last_clipped = 0
+
+    def set_state(self, q: np.ndarray, v: np.ndarray) -> None:
+        """Set the state from pinocchio's ``(q, v)``."""
+        self.mj_data.qpos[:] = self.converter.qpos_from_q(q)
+        self.mj_data.qvel[:] = self.converter.qvel_from_v(v, q)
+        self.mj_data.ctrl[:] = 0.0
+        self._mujoco.mj_forward(self.mj_model, self.mj_data)
+
+    def state(self, reading: ContactReading | None = None) -> RobotState:
+        """Return the current state in pinocchio's convention, with the feet's sensed contacts.
+
+        Args:
+            reading: The contact reading of the current instant, if already read.
+
+        """
+        q, v = self.converter.state_from_data(self.mj_data)
+        if reading is None:
+            reading = self.contacts()
+        contacts = {f: bool(c) for f, c in zip(self.robot.feet, reading.foot_contact)}
+        return RobotState(q=q, v=v, t=self.time, contacts=contacts)
+
+    # -- stepping ---------------------------------------------------------------------------
+
+    def apply(self, tau: np.ndarray) -> int:
+        """Set the motor commands from torques ``(na,)`` [N m]; return the clipped entry count.
+
+        Raises:
+            InvalidInput: Wrong shape or non-finite torques.
+
+        """
+        tau = check_array(tau, (self.na,), "Simulator: tau")
+        over = np.abs(tau) > self.torque_limits * (1.0 + 1e-9)
+        n = int(over.sum())
+        if n:
+            if self.clip_count == 0:
+                names = [self.joint_names[i] for i in np.flatnonzero(over)]
+                logger.warning("t=%.3f: torques clipped at joints %s", self.time, names)
+            tau = np.clip(tau, -self.torque_limits, self.torque_limits)
+        self.clip_count += n
+        self.last_clipped = n
+        self.mj_data.ctrl[:] = self.converter.ctrl_from_tau(tau)
+        return n
+
+    def step(self, tau: np.ndarray | None = None, force: np.ndarray | None = None) -> None:
+        """Advance one time step with torques ``tau`` and an optional base force ``(3,)`` [N]."""
+        if tau is not None:
+            self.apply(tau)
+        self.mj_data.xfrc_applied[:] = 0.0
+        if force is not None:
+            self.mj_data.xfrc_applied[self._push_body, :3] = force
+        self._mujoco.mj_step(self.mj_model, self.mj_data)
+
+    # -- sensing (logs and tests only) ------------------------------------------------------
+
+    def _body_root_foot(self, body: int) -> int | None:
+        """Index of the foot whose body is ``body`` or one of its ancestors (else ``None``)."""
+        m = self.mj_model
+        while body > 0:
+            if body in self._foot_bodies:
+                return self._foot_bodies.index(body)
+            body = int(m.body_parentid[body])
+        return None
+
+    def contacts(self) -> ContactReading:
+        """Read the floor contacts: feet in contact, other bodies touching, CoP."""
+        mujoco = self._mujoco
+        m, d = self.mj_model, self.mj_data
+        nfeet = len(self._foot_sites)
+        touching = np.zeros(nfeet, dtype=bool)
+        normal = np.zeros(nfeet)
+        others: set[str] = set()
+        wrench = np.zeros(6)
+        fz_sum = 0.0
+        moment = np.zeros(2)
+        for i in range(d.ncon):
+            con = d.contact[i]
+            g1, g2 = int(con.geom1), int(con.geom2)
+            if g1 in self._floor_geoms:
+                other = g2
+            elif g2 in self._floor_geoms:
+                other = g1
+            else:
+                continue
+            body = int(m.geom_bodyid[other])
+            foot = self._body_root_foot(body)
+            mujoco.mj_contactForce(m, d, i, wrench)
+            fn = float(wrench[0])  # normal force in the contact frame
+            if foot is None:
+                others.add(mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, body) or str(body))
+                continue
+            touching[foot] = True
+            normal[foot] += fn
+            fz_sum += fn
+            moment += fn * con.pos[:2]
+        cop = moment / fz_sum if fz_sum > 1e-9 else np.full(2, np.nan)
+        feet = np.array([d.site_xpos[s] for s in self._foot_sites])
+        return ContactReading(touching, feet, tuple(sorted(others)), normal, cop)
+
+    def sole_corners(self) -> np.ndarray:
+        """World positions of the sole corners of the feet ``(nfeet, 4, 3)`` [m]."""
+        out = []
+        for foot, s in zip(self.robot.feet, self._foot_sites):
+            surface = self.robot.contact(foot)
+            R = self.mj_data.site_xmat[s].reshape(3, 3)
+            out.append(self.mj_data.site_xpos[s] + surface.corners() @ R.T)
+        return np.array(out)
+
+    def com(self) -> np.ndarray:
+        """Centre of mass of the robot from MuJoCo ``(3,)`` [m]."""
+        return np.array(self.mj_data.subtree_com[1])
+
+    def base_height(self) -> float:
+        """Height of the floating base [m]."""
+        return float(self.mj_data.xpos[self._push_body, 2])
+
+    def fallen(self) -> bool:
+        """Whether the robot fell: pelvis below 0.6 x standing height, or a non-foot contact."""
+        return (self.base_height() < FALL_HEIGHT_RATIO * self.robot.standing_height
+                or bool(self.contacts().other_contact))
+
+
+def _hull(points: np.ndarray) -> np.ndarray:
+    """Convex hull of 2D points ``(k, 2)``, counter-clockwise (Andrew's monotone chain)."""
+    pts = sorted(map(tuple, np.round(points, 12)))
+    if len(pts) <= 2:
+        return np.array(pts)
+
+    def cross(o: tuple, a: tuple, b: tuple) -> float:
+        return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
+
+    lower: list[tuple] = []
+    for p in pts:
+        while len(lower) >= 2 and cross(lower[-2], lower[-1], p) <= 0:
+            lower.pop()
+        lower.append(p)
+    upper: list[tuple] = []
+    for p in reversed(pts):
+        while len(upper) >= 2 and cross(upper[-2], upper[-1], p) <= 0:
+            upper.pop()
+        upper.append(p)
+    return np.array(lower[:-1] + upper[:-1])
+
+
+def inside_polygon(point: np.ndarray, vertices: np.ndarray) -> float:
+    """Signed distance of a 2D point inside the convex hull of ``vertices`` ``(k, 2)`` [m].
+
+    Positive inside (distance to the nearest edge line), negative outside (the largest
+    violation of an edge's half-plane, a lower bound of the distance to the hull).
+    """
+    hull = _hull(np.asarray(vertices, dtype=float)[:, :2])
+    if hull.shape[0] < 3:
+        return float("-inf")
+    edges = np.roll(hull, -1, axis=0) - hull
+    normals = np.stack([edges[:, 1], -edges[:, 0]], axis=1)  # outward for a CCW hull
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    return float(-np.max(np.einsum("ij,ij->i", normals, np.asarray(point)[:2] - hull)))
