@@ -1,0 +1,272 @@
+"""The ``controller`` suite: whole control steps of every controller on the standing task set.
+
+Per robot (``paper-humanoid``, ``g1``, ``talos``), the same states are handed to:
+
+- ``hqp/<algorithm>/<backend>``: :func:`hqp.controller.standing_controller` (both soles in
+  contact, centre of mass, trunk upright, posture, torque, friction, centre-of-pressure and
+  viable joint limits; ``diagnostics="residuals"``: per-task residual flags, no per-task SVDs);
+- ``nullspace``: :func:`hqp.nullspace.standing_nullspace_controller` (same stack, joint limits
+  as the papers' activation zones; inequalities not enforced);
+- ``placo``: PlaCo's ``DynamicsSolver`` on the same task set (:mod:`hqp.bench.placo_step`).
+
+A unit of work is one full control step: model update, task rows, solve (and for hqp and the
+law, torques and the feasibility report). States: the ``(q, v)`` of the recorded ``stand``
+steps of the robot (pushes included) when the package has them, else the standing
+configuration with seeded perturbations; steps are made at ``t >= 1 s`` (task ramps done).
+Timing: :func:`hqp.bench.interleave.interleaved`, all configurations of a robot in the same
+rounds, one BLAS thread (PlaCo is single-threaded).
+
+Extra fields: ``phases_ms`` (median model update, rows, solve, torques, report of the step),
+``levels_ms`` (median time of each level in the solve), ``over_placo`` (median over PlaCo's
+median, same robot, same run), ``excess``/``excess_rel`` (level costs over the tightest hqp
+configuration, on the levels of the hqp controller at the same states).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import numpy as np
+
+from hqp.bench.accuracy import excess, level_costs, tightest
+from hqp.bench.interleave import Timing, interleaved
+from hqp.solver import ALGORITHMS, available_backends
+
+ROBOTS = ("paper-humanoid", "g1", "talos")
+"""Robots of the suite."""
+
+T0 = 1.0
+"""Control time of the first measured step [s] (after the stack's task ramps)."""
+
+SLOW_SECONDS = 0.25
+"""A configuration slower than this per step (median of a probe) is not interleaved."""
+
+
+def states(robot_name: str, count: int = 8, seed: int = 0) -> list[tuple[np.ndarray, np.ndarray]]:
+    """States ``(q, v)`` of the suite for a robot (see the module docstring)."""
+    from hqp.bench.recorded import DATA_DIR, load
+    from hqp.robots import load as load_robot
+
+    path = DATA_DIR / f"stand_{robot_name}.npz"
+    if path.is_file():
+        steps = load(path)
+        out = [(s.q.copy(), s.v.copy()) for s in steps if s.q.size]
+        if out:
+            return out[:count]
+    robot = load_robot(robot_name)
+    nv = robot.model().nv
+    rng = np.random.default_rng(seed)
+    out = []
+    for _ in range(count):
+        v = np.zeros(nv)
+        v[6:] = rng.normal(0.0, 0.01, nv - 6)  # joints only: the soles stay still
+        out.append((robot.q_standing.copy(), v))
+    return out
+
+
+def configurations(backends: Sequence[str] | None = None,
+                   algorithms: Sequence[str] = ALGORITHMS) -> list[str]:
+    """Return the configuration names: ``hqp/<algorithm>/<backend>``, ``nullspace``, ``placo``."""
+    bk = list(backends) if backends is not None else available_backends()
+    return [f"hqp/{a}/{b}" for a in algorithms for b in bk] + ["nullspace", "placo"]
+
+
+class _Stepper:
+    """One controller stepping through the suite's states (cycling), timings kept."""
+
+    def __init__(self, name: str, robot: Any, sts: list[tuple[np.ndarray, np.ndarray]],
+                 dt: float = 1e-3) -> None:
+        self.name = name
+        self.states = sts
+        self.dt = dt
+        self.i = 0
+        self.phases: list[dict[str, float]] = []
+        self.levels: list[list[float]] = []
+        self.record = False
+        if name == "placo":
+            from hqp.bench.placo_step import PlacoStanding
+
+            self.placo = PlacoStanding(robot, dt)
+            self.ctrl = None
+        elif name == "nullspace":
+            from hqp.nullspace import standing_nullspace_controller
+
+            self.ctrl = standing_nullspace_controller(robot, dt=dt, diagnostics="residuals")
+        else:
+            from hqp.controller import standing_controller
+
+            _, algorithm, backend = name.split("/")
+            self.ctrl = standing_controller(robot, dt=dt, backend=backend, algorithm=algorithm,
+                                            diagnostics="residuals")
+
+    def __call__(self) -> object:
+        from hqp.model import RobotState
+
+        q, v = self.states[self.i % len(self.states)]
+        t = T0 + self.i * self.dt
+        self.i += 1
+        if self.ctrl is None:
+            return self.placo.step(q, v)
+        cmd = self.ctrl.step(RobotState(q, v, t), t)
+        if self.record:
+            self.phases.append(dict(cmd.timings))
+            sol = getattr(self.ctrl, "last_solution", None)
+            if sol is not None and self.name != "nullspace":
+                self.levels.append([sol.timings[k] for k in sorted(sol.timings)
+                                    if k.startswith("level_")])
+        return cmd
+
+
+def _accuracy(steppers: dict[str, _Stepper], sts: list[tuple[np.ndarray, np.ndarray]]
+              ) -> tuple[dict[str, np.ndarray], np.ndarray]:
+    """Excess per level (largest over the states) on the hqp controller's levels."""
+    from hqp.model import RobotState
+
+    hqp_names = [n for n in steppers if n.startswith("hqp/")]
+    if not hqp_names:
+        return {}, np.zeros(0)
+    ref_name = hqp_names[0]
+    worst: dict[str, np.ndarray] = {}
+    ref_max = None
+    t = T0 + 10.0
+    for q, v in sts:
+        xs = {}
+        for name, st in steppers.items():
+            if st.ctrl is None:
+                continue
+            st.ctrl.step(RobotState(q, v, t), t)
+            x = st.ctrl.last_x
+            if x is not None:
+                xs[name] = x
+        t += 1e-3
+        levels = steppers[ref_name].ctrl.last_built.levels  # type: ignore[union-attr]
+        n = steppers[ref_name].ctrl.layout.n  # type: ignore[union-attr]
+        costs = {k: level_costs(levels, x) for k, x in xs.items() if x.size == n}
+        contract = {k: c for k, c in costs.items() if k.startswith("hqp/")}
+        if not contract:
+            continue
+        ref = tightest(contract)
+        ref_max = ref if ref_max is None else np.maximum(ref_max, ref)
+        for k, e in excess(costs, contract).items():
+            worst[k] = e if k not in worst else np.maximum(worst[k], e)
+    return worst, (ref_max if ref_max is not None else np.zeros(0))
+
+
+def run_robot(robot_name: str, names: Sequence[str], *, quick: bool = False,
+              progress: Callable[[str], None] | None = None) -> list[dict[str, Any]]:
+    """Rows of one robot."""
+    import time
+
+    from hqp.robots import load as load_robot
+
+    robot = load_robot(robot_name)
+    sts = states(robot_name, count=2 if quick else 8)
+    steppers: dict[str, _Stepper] = {}
+    failed: dict[str, str] = {}
+    for name in names:
+        try:
+            steppers[name] = _Stepper(name, robot, sts)
+        except Exception as exc:  # noqa: BLE001 - an unavailable configuration is reported
+            failed[name] = f"{type(exc).__name__}: {exc}"
+    # probe: one pass over the states (also the warm-up of persistent QPs)
+    probe: dict[str, np.ndarray] = {}
+    for name, st in list(steppers.items()):
+        d = []
+        try:
+            for _ in range(len(sts)):
+                t0 = time.perf_counter()
+                st()
+                d.append(time.perf_counter() - t0)
+        except Exception as exc:  # noqa: BLE001 - a failing controller is a result
+            failed[name] = f"{type(exc).__name__}: {exc}"
+            del steppers[name]
+            continue
+        probe[name] = np.asarray(d)
+    slow = {n for n in steppers if np.median(probe[n]) > SLOW_SECONDS}
+    for st in steppers.values():
+        st.record = True
+    fns = {n: st for n, st in steppers.items() if n not in slow}
+    settings = dict(warmup=2, batch=2, min_samples=4, max_seconds=3.0) if quick else dict(
+        warmup=2 * len(sts), batch=len(sts), min_samples=80, max_seconds=45.0)
+    timings = interleaved(fns, progress=progress, **settings)  # type: ignore[arg-type]
+    ex, ref = _accuracy(steppers, sts)
+    rows: list[dict[str, Any]] = []
+    ref_st = next((st for n, st in steppers.items() if n.startswith("hqp/")), None)
+    n_var = ref_st.ctrl.layout.n if ref_st is not None else None  # type: ignore[union-attr]
+    n_levels = len(ref_st.ctrl.last_built.levels) if ref_st is not None else None  # type: ignore[union-attr]
+    n_rows = None
+    if ref_st is not None:
+        n_rows = sum(0 if lv.A is None else np.shape(lv.A)[0]
+                     for lv in ref_st.ctrl.last_built.levels)  # type: ignore[union-attr]
+        n_rows += sum(0 if lv.C is None else np.shape(lv.C)[0]
+                      for lv in ref_st.ctrl.last_built.levels)  # type: ignore[union-attr]
+    for name in names:
+        parts = name.split("/")
+        row: dict[str, Any] = {
+            "suite": "controller", "robot": robot_name, "solver": name,
+            "algorithm": parts[1] if len(parts) == 3 else None,
+            "backend": parts[2] if len(parts) == 3 else None,
+            "levels": n_levels, "n": n_var, "rows": n_rows, "states": len(sts), "threads": 1,
+        }
+        if name in failed:
+            row.update(median_ms=None, p95_ms=None, failed=failed[name])
+            rows.append(row)
+            continue
+        st = steppers[name]
+        t = timings[name] if name in timings else Timing(probe[name], False)
+        row.update(median_ms=round(t.median_ms, 4), p95_ms=round(t.p95_ms, 4),
+                   settled=t.settled, samples=int(t.samples.size))
+        if name in slow:
+            row["probe_only"] = True
+        if st.phases:
+            keys = [k for k in st.phases[0] if k != "total"]
+            row["phases_ms"] = {k: round(1e3 * float(np.median([p[k] for p in st.phases])), 4)
+                                for k in keys}
+        if st.levels:
+            L = min(len(lv) for lv in st.levels)
+            row["levels_ms"] = [round(1e3 * float(np.median([lv[k] for lv in st.levels])), 4)
+                                for k in range(L)]
+        if name in ex:
+            e = ex[name]
+            row["excess"] = [float(f"{v:.3g}") for v in e]
+            row["excess_rel"] = float(f"{float(np.max(e / np.maximum(1.0, ref))):.3g}")
+        rows.append(row)
+    placo = next((r["median_ms"] for r in rows if r["solver"] == "placo" and r.get("median_ms")),
+                 None)
+    law = next((r["median_ms"] for r in rows if r["solver"] == "nullspace"
+                and r.get("median_ms")), None)
+    for r in rows:
+        if r.get("median_ms"):
+            if placo:
+                r["over_placo"] = round(r["median_ms"] / placo, 3)
+            if law:
+                r["over_nullspace"] = round(r["median_ms"] / law, 3)
+    return rows
+
+
+def run(*, quick: bool = False, robots: Sequence[str] | None = None,
+        backends: Sequence[str] | None = None,
+        progress: Callable[[str], None] | None = None) -> list[dict[str, Any]]:
+    """Run the ``controller`` suite.
+
+    Args:
+        quick: ``g1`` only, ``hqp/basis/proxsuite``, ``nullspace`` and ``placo``, a few samples
+            (for tests; times are not meaningful).
+        robots: Robots (default :data:`ROBOTS`).
+        backends: Backends (default: every installed one).
+        progress: Status lines (stderr).
+
+    """
+    if quick:
+        names = ["hqp/basis/proxsuite", "nullspace", "placo"]
+        robot_list = list(robots) if robots else ["g1"]
+    else:
+        names = configurations(backends)
+        robot_list = list(robots) if robots else list(ROBOTS)
+    rows: list[dict[str, Any]] = []
+    for r in robot_list:
+        if progress is not None:
+            progress(f"controller: {r}")
+        rows.extend(run_robot(r, names, quick=quick))
+    return rows
