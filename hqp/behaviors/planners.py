@@ -21,7 +21,7 @@ from hqp.errors import BehaviorFileError
 from hqp.model import RobotModel
 
 WALK_DEFAULTS: dict[str, float | int] = {
-    "distance": 1.2,
+    "distance": 1.0,
     "step_length": 0.11,
     "single_support_duration": 0.6,
     "double_support_ratio": 0.5,
@@ -142,12 +142,15 @@ class PlacoWalkPlanner:
         left, right = self._sides
         T_l = np.array(traj.get_T_world_left(tau))
         T_r = np.array(traj.get_T_world_right(tau))
-        h = 1e-3
-        v_l = np.array(traj.get_v_world_foot(left, tau))
-        v_r = np.array(traj.get_v_world_foot(right, tau))
-        tau2 = min(tau + h, traj.t_end - 1e-6)
-        a_l = (np.array(traj.get_v_world_foot(left, tau2)) - v_l) / h if tau2 > tau else 0 * v_l
-        a_r = (np.array(traj.get_v_world_foot(right, tau2)) - v_r) / h if tau2 > tau else 0 * v_r
+        # swing-foot velocity and acceleration by central differences of the planned frames
+        h = 2e-3
+        lo, hi = max(tau - h, 0.0), min(tau + h, traj.t_end - 1e-6)
+        p_l = [np.array(traj.get_T_world_left(x))[:3, 3] for x in (lo, tau, hi)]
+        p_r = [np.array(traj.get_T_world_right(x))[:3, 3] for x in (lo, tau, hi)]
+        v_l = (p_l[2] - p_l[0]) / (hi - lo)
+        v_r = (p_r[2] - p_r[0]) / (hi - lo)
+        a_l = (p_l[2] - 2 * p_l[1] + p_l[0]) / h**2 if hi - lo > 1.9 * h else 0 * v_l
+        a_r = (p_r[2] - 2 * p_r[1] + p_r[0]) / h**2 if hi - lo > 1.9 * h else 0 * v_r
         com = np.array(traj.get_p_world_CoM(tau))
         out = {
             "com": com,

@@ -34,7 +34,7 @@ from hqp.behaviors.inputs import InputStream
 from hqp.behaviors.loader import load_behavior
 from hqp.behaviors.planners import PlacoWalkPlanner
 from hqp.behaviors.spec import BehaviorSpec
-from hqp.errors import UnknownName
+from hqp.errors import BehaviorFileError, UnknownName
 
 logger = logging.getLogger(__name__)
 
@@ -72,46 +72,36 @@ class FootTracker:
         self.in_contact = contact
 
 
-def build_controller(robot: Any, model: Any, controller: str, contacts: dict[str, str]) -> Any:
-    """Build a whole-body controller with the constraint levels of ARCHITECTURE.md.
+def build_controller(robot: Any, controller: str, *, diagnostics: str = "residuals") -> Any:
+    """Build a whole-body controller holding only the constraint levels of ARCHITECTURE.md.
 
-    Physics (floating-base dynamics, contacts), contact and actuation limits
-    (friction, centre of pressure, torque limits), viable joint limits.
+    The standing controllers of :func:`hqp.nullspace.make_standing_controller` (physics
+    with both soles as contacts, friction / centre-of-pressure / torque limits, viable joint
+    limits for HQP or the papers' activation zones for the null-space law), without their
+    standing tasks: the behavior writes its own task sets.
+
+    Args:
+        robot: The bundled robot.
+        controller: ``"hqp"`` or ``"nullspace"``.
+        diagnostics: ``"residuals"`` (per-task residuals, cheap) or ``"full"``.
 
     Raises:
         UnknownName: Unknown controller.
 
     """
-    from hqp.stack import Stack
-    from hqp.tasks.contact import Contact
-    from hqp.tasks.dynamics import FloatingBaseDynamics
-    from hqp.tasks.joint_limits import JointLimits
-    from hqp.tasks.torque_limits import TorqueLimits
+    from hqp.nullspace import make_standing_controller
+    from hqp.tasks.com import CoMTask
+    from hqp.tasks.orientation import OrientationTask
+    from hqp.tasks.posture import PostureTask
 
     if controller not in CONTROLLERS:
         raise UnknownName("controller", controller, CONTROLLERS)
-    surfaces = {c.name: c for c in robot.contacts}
-    contact_tasks = []
-    for name, frame in contacts.items():
-        s = surfaces.get(name)
-        kwargs = {} if s is None else {"half_length": s.half_length, "half_width": s.half_width,
-                                       "mu": s.friction}
-        if s is not None:
-            contact_tasks.append(Contact(name, frame, s.kind, model=model, **kwargs))
-        else:
-            contact_tasks.append(Contact(name, frame, model=model))
-    stack = Stack()
-    stack.add(FloatingBaseDynamics())
-    stack.add(TorqueLimits())
-    stack.add(JointLimits())
-    if controller == "hqp":
-        from hqp.controller import WholeBodyController
-
-        # per-task residuals only (no per-task SVDs): a conflict is flagged by its residual
-        return WholeBodyController(model, contact_tasks, stack, diagnostics="residuals")
-    from hqp.nullspace import NullSpaceController
-
-    return NullSpaceController(model, contact_tasks, stack)
+    ctrl = make_standing_controller(controller, robot, diagnostics=diagnostics)
+    for task in list(ctrl.stack.tasks):
+        if isinstance(task, (CoMTask, OrientationTask, PostureTask)):
+            ctrl.stack.remove(task.name)
+    ctrl.stack.pop_events()
+    return ctrl
 
 
 @dataclass
@@ -172,8 +162,13 @@ def prepare(
 
     spec = source if isinstance(source, BehaviorSpec) else load_behavior(source)
     robot_obj = robots.load(robot or spec.robot)
-    model = robot_obj.model()
+    ctrl = build_controller(robot_obj, controller)
+    model = ctrl.model
     contacts = _contacts_of(spec, robot_obj)
+    declared = set(ctrl.stack.contacts)
+    if set(contacts) != declared:
+        raise BehaviorFileError(f"{spec.path}: contacts {sorted(contacts)} differ from the "
+                                f"robot's {sorted(declared)}")
     # validate frames, joints and contacts of the file against this robot
     path = spec.path if spec.path is not None else source
     if spec.path is not None:
@@ -190,7 +185,6 @@ def prepare(
         from dataclasses import replace
 
         spec = replace(spec, inputs=new_inputs)
-    ctrl = build_controller(robot_obj, model, controller, contacts)
     factory = TaskFactory(model, contacts, robot_obj.q_standing, feet=robot_obj.feet)
     inputs_path = inputs if inputs is not None else spec.inputs_file
     stream = InputStream(spec.inputs, inputs_path)
