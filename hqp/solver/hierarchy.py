@@ -68,6 +68,13 @@ _solve_triangular = solve_triangular
 _ZERO = np.zeros(0)
 _NO_ROWS = np.zeros(0, dtype=int)
 
+CARRY_MARGIN = 1e-9
+"""Margin (times ``max(1, |bound|)``) added to the bounds of inequality rows
+carried to lower levels. Rows active at a level's optimum would otherwise pin
+the lower levels' QPs on degenerate vertices, where active-set backends report
+inconsistent constraints and ProxQP converges slowly; a lower level can move
+such a row by at most this margin."""
+
 ALGORITHMS = ("basis", "cascade")
 """Names of the lexicographic algorithms."""
 
@@ -105,13 +112,15 @@ def _check_levels(levels: Sequence[Level], n_hint: int | None) -> tuple[list[Che
         raise InvalidLevel(
             f"levels: expected a sequence of Level, got {type(levels).__name__}"
         ) from None
-    n = n_hint
+    n = None
     checked: list[CheckedLevel] = []
     for k, level in enumerate(levels):
         lv = check_level(level, k, n)
         if lv.A.shape[1] or lv.C.shape[1] or lv.m_eq or lv.m_in:
             n = lv.A.shape[1]
         checked.append(lv)
+    if n is None:
+        n = n_hint
     if n is None:
         raise InvalidLevel(
             "levels: cannot infer the number of variables n (no level holds A or C, "
@@ -353,7 +362,7 @@ class HierarchicalSolver:
                 g1 = Ak.T @ bk
                 np.negative(g1, out=g1)
                 if mi == 0:
-                    y, ok = backend.solve(k, H11, g1, None, None,
+                    y, ok = _qp(backend, k, H11, g1, None, None,
                                           Gk if carried else None,
                                           gl - gx if carried else None,
                                           gu - gx if carried else None)
@@ -375,7 +384,7 @@ class HierarchicalSolver:
                     cx0 = C @ x
                     lo = np.concatenate((lv.lower - cx0, gl - gx))
                     up = np.concatenate((lv.upper - cx0, gu - gx))
-                    v, ok = backend.solve(k, H, g, None, None, Cq, lo, up)
+                    v, ok = _qp(backend, k, H, g, None, None, Cq, lo, up)
                     y = v[:r]
                 if not ok:
                     logger.debug("level %d: backend %s did not converge", k, backend.name)
@@ -410,11 +419,13 @@ class HierarchicalSolver:
                 keep = lv.bounded if violated is None else lv.bounded & ~violated
                 if keep.any():
                     ck = cx[keep]
+                    ls = lv.lo_scale[keep]
+                    us = lv.up_scale[keep]
                     G = np.concatenate((G, C[keep]))
-                    gl = np.concatenate((gl, np.minimum(lv.lower[keep], ck)))
-                    gu = np.concatenate((gu, np.maximum(lv.upper[keep], ck)))
-                    gls = np.concatenate((gls, lv.lo_scale[keep]))
-                    gus = np.concatenate((gus, lv.up_scale[keep]))
+                    gl = np.concatenate((gl, np.minimum(lv.lower[keep], ck) - CARRY_MARGIN * ls))
+                    gu = np.concatenate((gu, np.maximum(lv.upper[keep], ck) + CARRY_MARGIN * us))
+                    gls = np.concatenate((gls, ls))
+                    gus = np.concatenate((gus, us))
             if kind == _Internal.NONE:
                 pending.append((lv, Ak, Zb, fact))
             times.append(clock() - t0)
@@ -460,7 +471,7 @@ class HierarchicalSolver:
             up = np.concatenate([gu, lv.upper])
             # Earlier equality rows are held at their values at the current point,
             # which lies in their optimal set: redundant rows stay consistent.
-            v, ok = backend.solve(("cascade", k), H, g,
+            v, ok = _qp(backend, ("cascade", k), H, g,
                                   Eq if q else None, E @ x if q else None,
                                   Cq if p + mi else None, lo, up)
             qp_count += 1
@@ -481,8 +492,10 @@ class HierarchicalSolver:
                 keep = lv.bounded
                 cx = C[keep] @ x
                 G = np.concatenate([G, C[keep]])
-                gl = np.concatenate([gl, np.minimum(lv.lower[keep], cx)])
-                gu = np.concatenate([gu, np.maximum(lv.upper[keep], cx)])
+                gl = np.concatenate(
+                    [gl, np.minimum(lv.lower[keep], cx) - CARRY_MARGIN * lv.lo_scale[keep]])
+                gu = np.concatenate(
+                    [gu, np.maximum(lv.upper[keep], cx) + CARRY_MARGIN * lv.up_scale[keep]])
             times.append(time.perf_counter() - t0)
         return x, qp_count, times
 
@@ -525,6 +538,28 @@ def solve(
     return HierarchicalSolver(backend=backend, algorithm=algorithm, rank_tol=rank_tol).solve(
         levels, final_metric=final_metric, final_target=final_target
     )
+
+
+RETRY_MARGIN = 1e-9
+"""Relative margin by which every inequality bound of a level QP is relaxed
+when a backend fails on it (degenerate vertices); the retry's effect on the
+costs stays well inside the contract's tolerance."""
+
+
+def _qp(backend: QPBackend, slot: Any, H: np.ndarray, g: np.ndarray,
+        E: np.ndarray | None, e: np.ndarray | None, C: np.ndarray | None,
+        lo: np.ndarray | None, up: np.ndarray | None) -> tuple[np.ndarray, bool]:
+    """Call the backend; on failure retry once with bounds relaxed by :data:`RETRY_MARGIN`."""
+    v, ok = backend.solve(slot, H, g, E, e, C, lo, up)
+    if ok or C is None or lo is None or up is None:
+        return v, ok
+    logger.debug("backend %s failed on QP %s; retrying with relaxed bounds", backend.name, slot)
+    margin_lo = RETRY_MARGIN * np.maximum(1.0, np.abs(np.where(np.isfinite(lo), lo, 0.0)))
+    margin_up = RETRY_MARGIN * np.maximum(1.0, np.abs(np.where(np.isfinite(up), up, 0.0)))
+    v2, ok2 = backend.solve(slot, H, g, E, e, C, lo - margin_lo, up + margin_up)
+    if ok2 or not np.isfinite(v).all():
+        return v2, ok2
+    return v, ok
 
 
 def _active_rows(lv: CheckedLevel, cx: np.ndarray) -> np.ndarray:

@@ -9,7 +9,7 @@ import proxsuite
 
 from hqp.solver.backend import _INF, QPBackend
 
-EPS_ABS = 1e-10
+EPS_ABS = 1e-9
 """Absolute primal/dual residual tolerance (the contract's cost tolerance needs ~1e-9)."""
 
 _SOLVED = proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED
@@ -45,11 +45,19 @@ class ProxsuiteBackend(QPBackend):
         s.max_iter = 10000
         s.verbose = False
         s.compute_timings = False
+        # Residuals alone can be tiny while the cost is still off on semidefinite
+        # Hessians (rank-deficient least squares): require a small duality gap too.
+        s.check_duality_gap = True
+        s.eps_duality_gap_abs = EPS_ABS
+        s.eps_duality_gap_rel = 1e-10
         # The level QPs are feasible by construction (they contain the previous
         # optimum); the default 1e-4 infeasibility test misfires on degenerate
         # feasible sets, so it is made much stricter.
         s.eps_primal_inf = 1e-12
         s.eps_dual_inf = 1e-12
+        # ... and on the rare degenerate QP where the test still fires, ProxQP
+        # keeps iterating on the closest feasible problem, which is this one.
+        s.primal_infeasibility_solving = True
         qp.init(H, g, E, e, C, lo, up)
         qp.solve()
         # Warm starts need a previous result: switch only after the first solve.

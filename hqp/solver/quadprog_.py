@@ -7,12 +7,14 @@ import qpsolvers
 
 from hqp.solver.backend import QPBackend, one_sided
 
-REGULARIZATION = 1e-11
-"""Relative diagonal shift added to ``H`` (times ``max(1, max diag H)``):
-quadprog factorises ``H`` by Cholesky. The hierarchical solver works in the
-reduced coordinates of the optimal set, so the shift only acts on directions
-the level's cost leaves free; its effect on a level's cost is below
-``1e-11 * ||v||^2`` relative, inside the contract's ``1e-6``."""
+REGULARIZATION_SEQUENCE = (1e-11, 1e-9, 1e-8)
+"""Relative diagonal shifts added to ``H`` (times ``max(1, max diag H)``), tried
+in turn: quadprog factorises ``H`` by Cholesky, and its dual steps fail on
+nearly dependent active rows when ``H`` is badly conditioned. The hierarchical
+solver works in the reduced coordinates of the optimal set, so the shift only
+acts on directions the level's cost leaves free; it biases a level's cost by
+about ``shift * ||v||^2``, inside the contract's ``1e-6`` relative tolerance
+for solutions of moderate norm."""
 
 
 class QuadprogBackend(QPBackend):
@@ -22,13 +24,18 @@ class QuadprogBackend(QPBackend):
     needs_pd = True
 
     def solve(self, slot, H, g, E, e, C, lo, up):  # noqa: D102 - documented in the base
-        H = _regularized(H, REGULARIZATION)
         G, h = one_sided(C, lo, up)
         has_eq = E is not None and E.shape[0] > 0
-        problem = qpsolvers.Problem(H, g, G, h, E if has_eq else None, e if has_eq else None)
-        sol = qpsolvers.solve_problem(problem, solver="quadprog")
-        x = sol.x if sol.x is not None else np.full(H.shape[0], np.nan)
-        return np.asarray(x, dtype=float), bool(sol.found)
+        for rel in REGULARIZATION_SEQUENCE:
+            problem = qpsolvers.Problem(
+                _regularized(H, rel), g, G, h, E if has_eq else None, e if has_eq else None)
+            try:
+                sol = qpsolvers.solve_problem(problem, solver="quadprog")
+            except qpsolvers.ProblemError:
+                continue
+            if sol.found and sol.x is not None:
+                return np.asarray(sol.x, dtype=float), True
+        return np.full(H.shape[0], np.nan), False
 
 
 def _regularized(H: np.ndarray, rel: float) -> np.ndarray:
