@@ -75,7 +75,8 @@ class FootTracker:
 def build_controller(robot: Any, controller: str, *, diagnostics: str = "residuals") -> Any:
     """Build a whole-body controller holding only the constraint levels of ARCHITECTURE.md.
 
-    The standing controllers of :func:`hqp.nullspace.make_standing_controller` (physics
+    The standing controllers (:func:`hqp.controller.standing_controller`,
+    :func:`hqp.nullspace.standing_nullspace_controller`: physics
     with both soles as contacts, friction / centre-of-pressure / torque limits, viable joint
     limits for HQP or the papers' activation zones for the null-space law), without their
     standing tasks: the behavior writes its own task sets.
@@ -89,14 +90,20 @@ def build_controller(robot: Any, controller: str, *, diagnostics: str = "residua
         UnknownName: Unknown controller.
 
     """
-    from hqp.nullspace import make_standing_controller
     from hqp.tasks.com import CoMTask
     from hqp.tasks.orientation import OrientationTask
     from hqp.tasks.posture import PostureTask
 
     if controller not in CONTROLLERS:
         raise UnknownName("controller", controller, CONTROLLERS)
-    ctrl = make_standing_controller(controller, robot, diagnostics=diagnostics)
+    if controller == "hqp":
+        from hqp.controller import standing_controller
+
+        ctrl = standing_controller(robot, diagnostics=diagnostics)
+    else:
+        from hqp.nullspace import standing_nullspace_controller
+
+        ctrl = standing_nullspace_controller(robot, diagnostics=diagnostics)
     for task in list(ctrl.stack.tasks):
         if isinstance(task, (CoMTask, OrientationTask, PostureTask)):
             ctrl.stack.remove(task.name)
@@ -301,8 +308,7 @@ def run_behavior(
     t_end = (k + 1) * dt
     if flight:
         max_flight = max(max_flight, t_end - flight_start)
-    if renderer is not None:
-        renderer.close()
+    video_path = None if renderer is None else str(renderer.close())
     steps = sorted((s for tr in trackers.values() for s in tr.steps), key=lambda s: s["t_land"])
     metrics: dict[str, Any] = {
         "max_torque_ratio": round(torque_ratio, 4),
@@ -312,6 +318,7 @@ def run_behavior(
         "flight_time_s": round(max_flight, 4),
         "pelvis_min_m": round(float(pelvis_min), 4),
         "step_time_median_ms": round(1e3 * float(np.median(step_times)), 3) if step_times else 0,
+        "video": video_path,
     }
     if behavior.planner is not None:
         x_end = model.com[0]
@@ -333,11 +340,16 @@ def run_behavior(
 
 
 class _Renderer:
-    """Offscreen frames at 30 Hz, written as MP4 (imageio) or PNGs."""
+    """Offscreen frames at ``fps``, written as an MP4 (imageio) or a folder of PNGs."""
 
     def __init__(self, sim: Any, path: str | Path, fps: int = 30) -> None:
         import mujoco
 
+        from hqp.sim.render import RenderUnavailable, rendering_available
+
+        ok, message = rendering_available()
+        if not ok:
+            raise RenderUnavailable(message)
         self.sim = sim
         self.path = Path(path)
         self.fps = fps
@@ -350,6 +362,7 @@ class _Renderer:
         self.camera.azimuth = 120.0
 
     def maybe_capture(self, t: float) -> None:
+        """Grab a frame when one is due at simulated time ``t`` [s]."""
         if t + 1e-9 < self.next_t:
             return
         self.next_t += 1.0 / self.fps
@@ -357,7 +370,22 @@ class _Renderer:
         self.renderer.update_scene(self.sim.mj_data, self.camera)
         self.frames.append(self.renderer.render().copy())
 
-    def close(self) -> None:
-        from hqp.sim.render import write_video
+    def close(self) -> Path:
+        """Write the frames; return the path written."""
+        self.renderer.close()
+        if self.path.suffix == ".mp4":
+            try:
+                import imageio.v2 as imageio
 
-        write_video(self.frames, self.path, fps=self.fps)
+                self.path.parent.mkdir(parents=True, exist_ok=True)
+                imageio.mimwrite(self.path, self.frames, fps=self.fps)
+                return self.path
+            except Exception as exc:  # noqa: BLE001 - imageio or its ffmpeg plugin missing
+                logger.warning("MP4 writing failed (%s): writing PNG frames instead", exc)
+        import matplotlib.pyplot as plt
+
+        folder = self.path.with_suffix("")
+        folder.mkdir(parents=True, exist_ok=True)
+        for i, frame in enumerate(self.frames):
+            plt.imsave(folder / f"frame_{i:05d}.png", frame)
+        return folder
