@@ -15,21 +15,20 @@ One module per scenario; :data:`SCENARIOS` is the registry:
 
 from __future__ import annotations
 
+import importlib
+
 from comparisons.base import CONTROLLERS, RunResult, RunSpec, Scenario, ScenarioResult
 from hqp.errors import UnknownName
 
+_MODULES: dict[str, tuple[str, str]] = {
+    "hand-reach": ("comparisons.hand_reach", "HandReach"),
+    "obstacle": ("comparisons.obstacle", "Obstacle"),
+    "box-grab": ("comparisons.box_grab", "BoxGrab"),
+    "screwgun": ("comparisons.screwgun", "Screwgun"),
+}
+"""Module and class of each scenario (imported on demand: they import the simulator)."""
 
-def _registry() -> dict[str, type[Scenario]]:
-    """Scenario classes by name (imported lazily: they import the simulator)."""
-    from comparisons.box_grab import BoxGrab
-    from comparisons.hand_reach import HandReach
-    from comparisons.obstacle import Obstacle
-    from comparisons.screwgun import Screwgun
-
-    return {cls.name: cls for cls in (HandReach, Obstacle, BoxGrab, Screwgun)}
-
-
-SCENARIOS: tuple[str, ...] = ("hand-reach", "obstacle", "box-grab", "screwgun")
+SCENARIOS: tuple[str, ...] = tuple(_MODULES)
 """Names of the registered scenarios, in the order ``hqp compare --all`` runs them."""
 
 
@@ -40,10 +39,10 @@ def get_scenario(name: str) -> Scenario:
         UnknownName: Not a registered scenario (the message lists them).
 
     """
-    registry = _registry()
-    if name not in registry:
+    if name not in _MODULES:
         raise UnknownName("scenario", name, SCENARIOS)
-    return registry[name]()
+    module, cls = _MODULES[name]
+    return getattr(importlib.import_module(module), cls)()
 
 
 __all__ = [

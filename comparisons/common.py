@@ -1,0 +1,243 @@
+"""Pieces shared by the scenarios: controllers over a stack, standing setup, the recorder.
+
+A scenario describes its hierarchy as a list of levels of named tasks (after
+the constraint levels). :func:`make_controller` turns it into a controller:
+
+- ``hqp``: :class:`hqp.controller.WholeBodyController`; constraint sub-levels
+  first (physics: floating-base dynamics and the feet; contact and actuation
+  limits: friction, centre of pressure, torque limits; joint limits: the viable
+  bounds of :class:`hqp.tasks.joint_limits.JointLimits`; collision), then the
+  scenario's levels.
+- ``nullspace``: :class:`hqp.nullspace.NullSpaceController`; the law has no
+  inequalities, so joint limits are the papers' activation zones
+  (:class:`hqp.tasks.joint_limit_zone.JointLimitZone`) on the top task level,
+  and torque and friction limits are not enforced.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from hqp.errors import UnknownName
+from hqp.model import RobotModel
+from hqp.robots import Robot
+from hqp.stack import Stack
+from hqp.tasks.base import Category, Task
+
+DT = 1e-3
+"""Control and simulation period [s]."""
+
+BACKEND = "daqp"
+"""QP backend of the HQP controller in the scenarios."""
+
+
+@dataclass
+class Hierarchy:
+    """The scenario's own levels (below the constraint levels), highest first.
+
+    Attributes:
+        levels: ``(level name, tasks)`` pairs.
+        collision: Tasks of the collision sub-level (obstacle avoidance).
+        zone_joints: For the null-space law: joint-limit activation zones are
+            placed on this level name (default: a level of their own above
+            the scenario's levels).
+
+    """
+
+    levels: list[tuple[str, list[Task]]]
+    collision: list[Task] = field(default_factory=list)
+
+
+def feet_contacts(robot: Robot, model: RobotModel) -> list[Task]:
+    """Return the two sole contacts of a robot (surface contacts of the sole sizes)."""
+    from hqp.tasks.contact import Contact
+
+    out: list[Task] = []
+    for name in robot.feet:
+        c = robot.contact(name)
+        out.append(
+            Contact(
+                c.name,
+                c.frame,
+                c.kind,
+                mu=c.friction,
+                half_length=c.half_length,
+                half_width=c.half_width,
+                model=model,
+            )
+        )
+    return out
+
+
+def joint_acceleration_bound(robot: Robot, margin: float = 0.5) -> np.ndarray:
+    """Constant deceleration ``A`` per joint for the viable bounds, from the torque limits.
+
+    Computed once at the standing configuration with
+    :func:`hqp.tasks.joint_limits.max_acceleration_from_torques` (Del Prete's
+    viability argument assumes constant bounds).
+    """
+    from hqp.tasks.joint_limits import max_acceleration_from_torques
+
+    model = robot.model()
+    model.update(robot.q_standing, np.zeros(model.nv))
+    return max_acceleration_from_torques(model, margin)
+
+
+def make_controller(
+    kind: str,
+    robot: Robot,
+    model: RobotModel,
+    hierarchy: Hierarchy,
+    *,
+    zone: float = 0.1,
+    zone_gains: tuple[float, float] = (400.0, 40.0),
+) -> Any:
+    """Build the controller ``kind`` over the scenario's hierarchy.
+
+    Args:
+        kind: ``"hqp"`` or ``"nullspace"``.
+        robot: The robot.
+        model: The controller's model.
+        hierarchy: The scenario's levels.
+        zone: Width of the null-space law's joint-limit activation zones [rad].
+        zone_gains: ``(kp, kv)`` of the activation-zone PD law.
+
+    Raises:
+        UnknownName: Another kind.
+
+    """
+    from hqp.tasks.dynamics import FloatingBaseDynamics
+
+    names = [name for name, _ in hierarchy.levels]
+    if kind == "hqp":
+        from hqp.controller import WholeBodyController
+        from hqp.tasks.joint_limits import JointLimits
+        from hqp.tasks.torque_limits import TorqueLimits
+
+        stack = Stack(
+            [Category.PHYSICS, Category.CONTACT_LIMITS, Category.JOINT_LIMITS,
+             Category.COLLISION, *names]
+        )
+        stack.add(FloatingBaseDynamics(), Category.PHYSICS)
+        stack.add(TorqueLimits(), Category.CONTACT_LIMITS)
+        stack.add(JointLimits(qdd_max=joint_acceleration_bound(robot)), Category.JOINT_LIMITS)
+        for task in hierarchy.collision:
+            stack.add(task, Category.COLLISION)
+        for name, tasks in hierarchy.levels:
+            for task in tasks:
+                stack.add(task, name)
+        return WholeBodyController(
+            model, feet_contacts(robot, model), stack, dt=DT, backend=BACKEND
+        )
+    if kind == "nullspace":
+        from hqp.nullspace import NullSpaceController
+        from hqp.tasks.joint_limit_zone import JointLimitZone
+
+        stack = Stack([Category.PHYSICS, "joint_limit_zones", "collision", *names])
+        stack.add(FloatingBaseDynamics(), Category.PHYSICS)
+        stack.add(
+            JointLimitZone(zone=zone, kp=zone_gains[0], kv=zone_gains[1]), "joint_limit_zones"
+        )
+        for task in hierarchy.collision:
+            stack.add(task, "collision")
+        for name, tasks in hierarchy.levels:
+            for task in tasks:
+                stack.add(task, name)
+        return NullSpaceController(model, feet_contacts(robot, model), stack, dt=DT)
+    raise UnknownName("controller", kind, ("hqp", "nullspace"))
+
+
+def kinematic_rollout(
+    controller: Any,
+    model: RobotModel,
+    q0: np.ndarray,
+    duration: float,
+    on_step: Callable[[float, np.ndarray, np.ndarray, Any], None] | None = None,
+) -> None:
+    """Integrate the controller's accelerations without a simulator (for tuning and tests).
+
+    Semi-implicit Euler on the manifold: ``v += dt qdd``, ``q = q (+) dt v``.
+    """
+    from hqp.model import RobotState
+
+    q = q0.copy()
+    v = np.zeros(model.nv)
+    n = int(round(duration / DT))
+    for k in range(n):
+        t = k * DT
+        cmd = controller.step(RobotState(q, v, t), t)
+        if on_step is not None:
+            on_step(t, q, v, cmd)
+        v = v + DT * cmd.qdd
+        q = model.integrate(q, DT * v)
+
+
+def wall_ms() -> float:
+    """Wall-clock time [ms] (for step timings)."""
+    return 1e3 * time.perf_counter()
+
+
+def require(names: Sequence[str], name: str, kind: str) -> None:
+    """Raise :class:`UnknownName` when ``name`` is not in ``names``."""
+    if name not in names:
+        raise UnknownName(kind, name, names)
+
+
+def run_controller(
+    spec_controller: str,
+    robot: Robot,
+    model: RobotModel,
+    hierarchy: Hierarchy,
+    duration: float,
+    progress: Callable[[str], None],
+    *,
+    events: Sequence[Any] = (),
+    wrap: Callable[[Any], Any] | None = None,
+    zone: float = 0.1,
+) -> tuple[Any, str]:
+    """Simulate one controller over a hierarchy in MuJoCo.
+
+    Args:
+        spec_controller: ``"hqp"``, ``"nullspace"`` or ``"placo"``.
+        robot: The robot.
+        model: The controller's model.
+        hierarchy: The scenario's levels.
+        duration: Simulated time [s].
+        progress: Receives progress messages.
+        events: Timed events of :func:`hqp.sim.run.simulate`.
+        wrap: Wraps the controller before the run (e.g. to move obstacles with time).
+        zone: Activation-zone width of the null-space law [rad].
+
+    Returns:
+        The simulator's log and a note on what the controller cannot express ("" if nothing).
+
+    """
+    from hqp.sim.run import simulate
+
+    note = ""
+    if spec_controller == "placo":
+        from comparisons.placo_runner import PlacoController, placo_note
+
+        controller: Any = PlacoController(robot, hierarchy)
+        note = placo_note(controller, hierarchy)
+    else:
+        controller = make_controller(spec_controller, robot, model, hierarchy, zone=zone)
+        if spec_controller == "nullspace" and hierarchy.collision:
+            note = ("the null-space law has no inequalities: obstacle-avoidance rows are not "
+                    "enforced")
+    if wrap is not None:
+        controller = wrap(controller)
+    last = [-1.0]
+
+    def tick(t: float) -> None:
+        if t - last[0] >= 0.5 - 1e-9:
+            last[0] = t
+            progress(f"  t = {t:.1f} s")
+
+    log = simulate(robot, controller, duration, events, progress=tick)
+    return log, note

@@ -1,0 +1,160 @@
+"""``hand-reach``: hand position control under joint-limit constraints (seed 003, section 5).
+
+The experiment of the hierarchy paper's Figures 3-5 on ``paper-humanoid``
+(24 DoF, 1.65 m, 71 kg), standing on both feet. The right hand is commanded
+to a fixed target low in front of and beside the robot, far enough that the
+hip, knee-flexion and right-elbow limits are reached before the hand gets
+there: the target is unreachable because of joint limits. Tasks (eq. 24-26),
+each with the PD law with velocity saturation of eq. 27-28:
+
+- joint limits (``V_JLC``): HQP: the viable position/velocity bounds at the
+  joint-limit sub-level; null-space law: the papers' activation zones at the
+  top task level;
+- centre of gravity (``V_COG``): horizontal position over the centre of the
+  feet (eq. 24);
+- right-hand position (``V_HAND``);
+- symmetry posture (``V_SYM = ||W (q - q_mid)||^2``, eq. 26).
+
+Hierarchies:
+
+- ``shared`` (eq. 29-30): joint limits; {centre of gravity, hand} in one
+  level; posture;
+- ``cog-first`` (eq. 31): joint limits; centre of gravity; hand; posture.
+
+PlaCo (``placo``) has hard and soft tasks only: ``cog-first`` maps to a hard
+centre-of-gravity task and soft hand and posture tasks; ``shared`` to soft
+centre-of-gravity and hand tasks of equal weight. In both, the posture is a
+soft task with a small weight beside the hand (not strictly below it), which
+is where PlaCo's priorities cannot express the paper's hierarchy.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from comparisons.base import Progress, RunResult, RunSpec, Scenario
+from comparisons.common import Hierarchy, run_controller
+from comparisons.metrics import Trace
+from comparisons.record import trace_from_log
+from hqp.plots import Line, Panel
+
+
+@dataclass(frozen=True)
+class HandReachParameters:
+    """Target and gains of the experiment (tuned once, the same for every controller).
+
+    Attributes:
+        target_offset: Hand target relative to the centre of the feet ``(3,)``
+            (x forward, y left, z up from the floor) [m].
+        hand_gains: ``(kp [1/s^2], kv [1/s], max_velocity [m/s])`` of the hand.
+        cog_gains: ``(kp, kv, max_velocity)`` of the centre of gravity.
+        posture_gains: ``(kp, kv)`` of the symmetry posture.
+        shared_weights: ``(cog, hand)`` weights in the ``shared`` level.
+        zone: Activation-zone width of the null-space law's joint limits [rad].
+
+    """
+
+    target_offset: tuple[float, float, float] = (0.55, -0.30, 0.10)
+    hand_gains: tuple[float, float, float] = (100.0, 20.0, 0.5)
+    cog_gains: tuple[float, float, float] = (100.0, 20.0, 0.5)
+    posture_gains: tuple[float, float] = (25.0, 10.0)
+    shared_weights: tuple[float, float] = (1.0, 1.0)
+    zone: float = 0.1
+
+
+PLOTTED_JOINTS = ("right_elbow", "right_knee", "right_hip_pitch")
+"""Joints drawn against their limits (the paper's Figures 4c-d, plus the hip)."""
+
+
+class HandReach(Scenario):
+    """Seed 003, section 5: reach an unreachable target under joint limits."""
+
+    name = "hand-reach"
+    title = "right hand to an unreachable low target under joint limits (CoG, symmetry posture)"
+    paper = "hierarchy paper (seed 003), section 5, Figures 3-5, eq. 24-31"
+    robots = ("paper-humanoid",)
+    hierarchies = ("shared", "cog-first")
+    duration = 3.0
+
+    def __init__(self, parameters: HandReachParameters | None = None) -> None:
+        self.parameters = parameters or HandReachParameters()
+
+    # -- tasks ------------------------------------------------------------------------------
+
+    def build(self, robot_name: str, spec: RunSpec) -> tuple[object, object, Hierarchy, dict]:
+        """Robot, controller model, hierarchy and goals of one run."""
+        from hqp.robots import load
+        from hqp.tasks.com import CoMTask, support_center
+        from hqp.tasks.position import PositionTask
+        from hqp.tasks.posture import PostureTask
+
+        p = self.parameters
+        robot = load(robot_name)
+        model = robot.model()
+        model.update(robot.q_standing, np.zeros(model.nv))
+        feet = support_center(model, list(robot.feet))
+        goal_cog = feet[:2].copy()
+        target = np.array([feet[0], feet[1], 0.0]) + np.array(p.target_offset)
+        w_cog, w_hand = p.shared_weights if spec.hierarchy == "shared" else (1.0, 1.0)
+        cog = CoMTask(model, horizontal=True, name="cog", weight=w_cog, kp=p.cog_gains[0],
+                      kv=p.cog_gains[1], max_velocity=p.cog_gains[2])
+        cog.set_goal(goal_cog)
+        hand = PositionTask(model, robot.hands[1], name="hand", weight=w_hand,
+                            kp=p.hand_gains[0], kv=p.hand_gains[1], max_velocity=p.hand_gains[2])
+        hand.set_goal(target)
+        sym = PostureTask.symmetry(model, name="symmetry", kp=p.posture_gains[0],
+                                   kv=p.posture_gains[1])
+        if spec.hierarchy == "shared":
+            levels = [("cog+hand", [cog, hand]), ("posture", [sym])]
+        else:
+            levels = [("cog", [cog]), ("hand", [hand]), ("posture", [sym])]
+        goals = {"cog": goal_cog, "hand": target, "feet": feet}
+        return robot, model, Hierarchy(levels), goals
+
+    # -- run --------------------------------------------------------------------------------
+
+    def simulate(self, robot: str, spec: RunSpec, duration: float, progress: Progress) -> RunResult:
+        """Run one controller on one hierarchy in MuJoCo."""
+        rob, model, hierarchy, goals = self.build(robot, spec)
+        log, note = run_controller(spec.controller, rob, model, hierarchy, duration, progress,
+                                   zone=self.parameters.zone)
+        trace = trace_from_log(rob, log, goals["cog"], hand_frame=rob.hands[1],
+                               hand_goal=goals["hand"])
+        return RunResult(spec, {}, trace, self.panels(trace), note)
+
+    # -- figure -----------------------------------------------------------------------------
+
+    @staticmethod
+    def panels(trace: Trace) -> list[Panel]:
+        """Panels like the paper's Figures 4-5: CoG error, hand height, elbow, knee (+ hip)."""
+        t = trace.t
+        err = 1e2 * trace.cog_error
+        out = [
+            Panel("Balancing Error", "error [cm]", t,
+                  (Line("X Direction", err[:, 0]), Line("Y Direction", err[:, 1]))),
+        ]
+        if trace.hand is not None and trace.hand_goal is not None:
+            out.append(Panel("Right Hand Vertical Position", "Z [m]", t,
+                             (Line("Hand Goal", trace.hand_goal[:, 2], "dashed"),
+                              Line("Hand Position", trace.hand[:, 2]))))
+        labels = {"right_elbow": ("Right Elbow Angle", "Elbow"),
+                  "right_knee": ("Right Knee Flexion", "Knee Flexion"),
+                  "right_hip_pitch": ("Right Hip Flexion", "Hip Flexion")}
+        for joint in PLOTTED_JOINTS:
+            if joint not in trace.joint_names:
+                continue
+            i = trace.joint_names.index(joint)
+            q = trace.q[:, i]
+            lo, hi = trace.q_lower[i], trace.q_upper[i]
+            limit = lo if abs(q[-1] - lo) < abs(q[-1] - hi) else hi
+            title, short = labels[joint]
+            out.append(Panel(title, "angle [rad]", t,
+                             (Line(f"{short} Limit", np.full_like(q, limit), "dashed"),
+                              Line(f"{short} Angle", q))))
+        if trace.hand is not None and trace.hand_goal is not None:
+            d = 1e2 * np.linalg.norm(trace.hand - trace.hand_goal, axis=1)
+            out.append(Panel("Right Hand Distance to Target", "distance [cm]", t,
+                             (Line("distance", d),)))
+        return out
