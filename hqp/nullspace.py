@@ -164,8 +164,9 @@ import scipy.linalg as sla
 from hqp.errors import InvalidInput, check_array
 
 if TYPE_CHECKING:
-    from hqp.controller import Command, TaskStatus
+    from hqp.controller import Command, Controller, TaskStatus
     from hqp.model import RobotModel, RobotState
+    from hqp.robots import Robot
     from hqp.stack import BuiltStack, Stack
     from hqp.tasks.base import Task
 
@@ -986,3 +987,118 @@ def _level_cost(level: object, x: np.ndarray) -> float:
     if C is not None:
         cost += float(np.sum(_violation(np.asarray(C), level.lower, level.upper, x) ** 2))  # type: ignore[attr-defined]
     return cost
+
+
+# ------------------------------------------------------------------------------------------------
+# Construction by name (the CLI's ``--controller hqp|nullspace``)
+# ------------------------------------------------------------------------------------------------
+
+CONTROLLER_NAMES: tuple[str, ...] = ("hqp", "nullspace")
+"""Names accepted by :func:`make_standing_controller`."""
+
+
+def papers_joint_limits(
+    stack: Stack, *, zone: float = 0.1, gains: tuple[float, float] = (400.0, 40.0)
+) -> None:
+    """Replace the stack's viable joint limits by the papers' activation zones (in place).
+
+    Every :class:`~hqp.tasks.joint_limits.JointLimits` task is removed and one
+    :class:`~hqp.tasks.joint_limit_zone.JointLimitZone` is placed on the JOINT_LIMITS level
+    (the first level with equality rows below the physics, i.e. the top of the task
+    hierarchy, seed 003 eq. 12 and 25). The change is made before the first step (no blend).
+
+    Args:
+        stack: The stack to change.
+        zone: Width of the activation zones [rad].
+        gains: ``(kp, kv)`` of the zones' PD law (eq. 27).
+
+    """
+    from hqp.tasks.base import Category
+    from hqp.tasks.joint_limit_zone import JointLimitZone
+    from hqp.tasks.joint_limits import JointLimits
+
+    level = (
+        Category.JOINT_LIMITS if Category.JOINT_LIMITS in stack.level_categories else 1
+    )
+    for task in list(stack.tasks):
+        if isinstance(task, JointLimits):
+            stack.remove(task.name)
+    stack.pop_events()
+    stack.add(JointLimitZone(zone=zone, kp=gains[0], kv=gains[1]), level)
+
+
+def standing_nullspace_controller(
+    robot: Robot,
+    *,
+    dt: float = 0.001,
+    backend: str = "proxsuite",
+    algorithm: str = "basis",
+    diagnostics: str = "full",
+    joint_limit_zones: bool = True,
+    zone: float = 0.1,
+    zone_gains: tuple[float, float] = (400.0, 40.0),
+    eig_tol: float = EIG_TOL,
+    internal_forces: str = "min-norm",
+    **gains: float,
+) -> NullSpaceController:
+    """Build a :class:`NullSpaceController` holding a humanoid standing on both feet.
+
+    Same arguments as :func:`hqp.controller.standing_controller` (``backend`` and
+    ``algorithm`` are accepted and unused) and the same stack
+    (:func:`hqp.controller.standing_stack`), except that the viable joint limits, which are
+    inequalities, are replaced by the papers' activation zones (:func:`papers_joint_limits`).
+    Friction, centre-of-pressure and torque limits stay in the stack: reported, not enforced.
+
+    Args:
+        robot: The bundled robot (``hqp.robots.load(name)``).
+        dt: Control period [s].
+        backend: Unused (call compatibility).
+        algorithm: Unused (call compatibility).
+        diagnostics: ``"full"`` or ``"residuals"``.
+        joint_limit_zones: Use activation zones (``False``: no joint-limit handling at all,
+            the case the HQP design is about).
+        zone: Width of the activation zones [rad].
+        zone_gains: ``(kp, kv)`` of the zones' PD law.
+        eig_tol: Relative eigenvalue threshold of eq. 22.
+        internal_forces: ``"min-norm"`` or ``"none"``.
+        **gains: Keyword arguments of :func:`hqp.controller.standing_stack`.
+
+    """
+    from hqp.controller import standing_stack
+    from hqp.tasks.joint_limits import JointLimits
+
+    model = robot.model()
+    stack, contacts = standing_stack(robot, model, **gains)
+    if joint_limit_zones:
+        papers_joint_limits(stack, zone=zone, gains=zone_gains)
+    else:
+        for task in list(stack.tasks):
+            if isinstance(task, JointLimits):
+                stack.remove(task.name)
+        stack.pop_events()
+    return NullSpaceController(model, contacts, stack, dt=dt, diagnostics=diagnostics,
+                               eig_tol=eig_tol, internal_forces=internal_forces)
+
+
+def make_standing_controller(kind: str, robot: Robot, **kwargs: object) -> Controller:
+    """Build the standing controller ``kind`` (``"hqp"`` or ``"nullspace"``) by name.
+
+    Args:
+        kind: One of :data:`CONTROLLER_NAMES`.
+        robot: The bundled robot.
+        **kwargs: Arguments of :func:`hqp.controller.standing_controller` (both) and of
+            :func:`standing_nullspace_controller` (``"nullspace"`` only).
+
+    Raises:
+        UnknownName: Another name (lists the valid ones).
+
+    """
+    from hqp.errors import UnknownName
+
+    if kind == "hqp":
+        from hqp.controller import standing_controller
+
+        return standing_controller(robot, **kwargs)  # type: ignore[arg-type]
+    if kind == "nullspace":
+        return standing_nullspace_controller(robot, **kwargs)  # type: ignore[arg-type]
+    raise UnknownName("controller", kind, CONTROLLER_NAMES)
