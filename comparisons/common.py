@@ -16,7 +16,6 @@ the constraint levels). :func:`make_controller` turns it into a controller:
 
 from __future__ import annotations
 
-import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -43,9 +42,6 @@ class Hierarchy:
     Attributes:
         levels: ``(level name, tasks)`` pairs.
         collision: Tasks of the collision sub-level (obstacle avoidance).
-        zone_joints: For the null-space law: joint-limit activation zones are
-            placed on this level name (default: a level of their own above
-            the scenario's levels).
 
     """
 
@@ -54,38 +50,43 @@ class Hierarchy:
 
 
 def feet_contacts(robot: Robot, model: RobotModel) -> list[Task]:
-    """Return the two sole contacts of a robot (surface contacts of the sole sizes)."""
+    """Return the two sole contacts, as the standing controllers declare them.
+
+    Friction ``0.8 x`` the sole's, centre of pressure within ``0.9 x`` the sole
+    (:func:`hqp.controller.standing_stack`).
+    """
+    from hqp.layout import ContactType
     from hqp.tasks.contact import Contact
 
     out: list[Task] = []
-    for name in robot.feet:
-        c = robot.contact(name)
-        out.append(
-            Contact(
-                c.name,
-                c.frame,
-                c.kind,
-                mu=c.friction,
-                half_length=c.half_length,
-                half_width=c.half_width,
-                model=model,
-            )
-        )
+    for foot in robot.feet:
+        c = robot.contact(foot)
+        out.append(Contact(foot, c.frame, ContactType.SURFACE, mu=0.8 * c.friction,
+                           half_length=0.9 * c.half_length, half_width=0.9 * c.half_width,
+                           model=model))
     return out
 
 
-def joint_acceleration_bound(robot: Robot, margin: float = 0.5) -> np.ndarray:
-    """Constant deceleration ``A`` per joint for the viable bounds, from the torque limits.
+def build_stack(robot: Robot, model: RobotModel, hierarchy: Hierarchy) -> Stack:
+    """Constraint sub-levels, then the scenario's levels (module docstring)."""
+    from hqp.tasks.dynamics import FloatingBaseDynamics
+    from hqp.tasks.joint_limits import JointLimits, max_acceleration_from_torques
+    from hqp.tasks.torque_limits import TorqueLimits
 
-    Computed once at the standing configuration with
-    :func:`hqp.tasks.joint_limits.max_acceleration_from_torques` (Del Prete's
-    viability argument assumes constant bounds).
-    """
-    from hqp.tasks.joint_limits import max_acceleration_from_torques
-
-    model = robot.model()
+    names = [name for name, _ in hierarchy.levels]
+    stack = Stack([Category.PHYSICS, Category.CONTACT_LIMITS, Category.JOINT_LIMITS,
+                   Category.COLLISION, *names])
+    stack.add(FloatingBaseDynamics(), Category.PHYSICS)
+    stack.add(TorqueLimits(), Category.CONTACT_LIMITS)
     model.update(robot.q_standing, np.zeros(model.nv))
-    return max_acceleration_from_torques(model, margin)
+    qdd_max = max_acceleration_from_torques(model, margin=0.5, supports=list(robot.feet))
+    stack.add(JointLimits(qdd_max=qdd_max), Category.JOINT_LIMITS)
+    for task in hierarchy.collision:
+        stack.add(task, Category.COLLISION)
+    for name, tasks in hierarchy.levels:
+        for task in tasks:
+            stack.add(task, name)
+    return stack
 
 
 def make_controller(
@@ -99,6 +100,12 @@ def make_controller(
 ) -> Any:
     """Build the controller ``kind`` over the scenario's hierarchy.
 
+    Both controllers get the same stack (:func:`build_stack`); for the
+    null-space law the viable joint limits are replaced by the papers'
+    activation zones (:func:`hqp.nullspace.papers_joint_limits`), and its
+    inequality rows (friction, torque limits, obstacle distances) are
+    reported, not enforced.
+
     Args:
         kind: ``"hqp"`` or ``"nullspace"``.
         robot: The robot.
@@ -111,43 +118,17 @@ def make_controller(
         UnknownName: Another kind.
 
     """
-    from hqp.tasks.dynamics import FloatingBaseDynamics
-
-    names = [name for name, _ in hierarchy.levels]
     if kind == "hqp":
         from hqp.controller import WholeBodyController
-        from hqp.tasks.joint_limits import JointLimits
-        from hqp.tasks.torque_limits import TorqueLimits
 
-        stack = Stack(
-            [Category.PHYSICS, Category.CONTACT_LIMITS, Category.JOINT_LIMITS,
-             Category.COLLISION, *names]
-        )
-        stack.add(FloatingBaseDynamics(), Category.PHYSICS)
-        stack.add(TorqueLimits(), Category.CONTACT_LIMITS)
-        stack.add(JointLimits(qdd_max=joint_acceleration_bound(robot)), Category.JOINT_LIMITS)
-        for task in hierarchy.collision:
-            stack.add(task, Category.COLLISION)
-        for name, tasks in hierarchy.levels:
-            for task in tasks:
-                stack.add(task, name)
-        return WholeBodyController(
-            model, feet_contacts(robot, model), stack, dt=DT, backend=BACKEND
-        )
+        stack = build_stack(robot, model, hierarchy)
+        return WholeBodyController(model, feet_contacts(robot, model), stack, dt=DT,
+                                   backend=BACKEND)
     if kind == "nullspace":
-        from hqp.nullspace import NullSpaceController
-        from hqp.tasks.joint_limit_zone import JointLimitZone
+        from hqp.nullspace import NullSpaceController, papers_joint_limits
 
-        stack = Stack([Category.PHYSICS, "joint_limit_zones", "collision", *names])
-        stack.add(FloatingBaseDynamics(), Category.PHYSICS)
-        stack.add(
-            JointLimitZone(zone=zone, kp=zone_gains[0], kv=zone_gains[1]), "joint_limit_zones"
-        )
-        for task in hierarchy.collision:
-            stack.add(task, "collision")
-        for name, tasks in hierarchy.levels:
-            for task in tasks:
-                stack.add(task, name)
+        stack = build_stack(robot, model, hierarchy)
+        papers_joint_limits(stack, zone=zone, gains=zone_gains)
         return NullSpaceController(model, feet_contacts(robot, model), stack, dt=DT)
     raise UnknownName("controller", kind, ("hqp", "nullspace"))
 
@@ -175,17 +156,6 @@ def kinematic_rollout(
             on_step(t, q, v, cmd)
         v = v + DT * cmd.qdd
         q = model.integrate(q, DT * v)
-
-
-def wall_ms() -> float:
-    """Wall-clock time [ms] (for step timings)."""
-    return 1e3 * time.perf_counter()
-
-
-def require(names: Sequence[str], name: str, kind: str) -> None:
-    """Raise :class:`UnknownName` when ``name`` is not in ``names``."""
-    if name not in names:
-        raise UnknownName(kind, name, names)
 
 
 def run_controller(
