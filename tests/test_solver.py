@@ -34,9 +34,10 @@ def _quiet():
 
 
 def pinv_recursion(eq_levels, n, metric=None, target=None, rcond=1e-10):
-    """Closed-form recursive pseudo-inverse solution (projector form, SVD pseudo-inverses).
+    """Closed-form recursive pseudo-inverse solution (projector form, SVD pseudo-inverse).
 
-    x_k = x_{k-1} + (A_k P_{k-1})^+ (b_k - A_k x_{k-1}),  P_k = P_{k-1} - (A_k P_{k-1})^+ A_k P_{k-1}.
+    x_k = x_{k-1} + (A_k P_{k-1})^+ (b_k - A_k x_{k-1}),
+    P_k = P_{k-1} - (A_k P_{k-1})^+ A_k P_{k-1}.
     Starting from x = 0 this is the minimum-norm lexicographic optimum. With a
     positive definite metric M and target t, the final step is
     x = x_L + P (P M P)^+ P M (t - x_L).

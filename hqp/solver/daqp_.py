@@ -16,7 +16,8 @@ SETTINGS = {
 }
 """DAQP settings: tight primal tolerance, a forced proximal outer loop
 (``eps_prox > 0``) run to a tight stop (``eta_prox``): DAQP needs a positive
-definite Hessian, and the least-squares Hessians of a hierarchy are only semidefinite. Proximal-point iterations
+definite Hessian, and the least-squares Hessians of a hierarchy are only
+semidefinite. Proximal-point iterations
 ``min f(v) + eps/2 ||v - v_prev||^2`` converge to an exact minimiser of ``f``
 (no bias, unlike a fixed regularisation)."""
 

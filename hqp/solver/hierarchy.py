@@ -549,7 +549,16 @@ costs stays well inside the contract's tolerance."""
 def _qp(backend: QPBackend, slot: Any, H: np.ndarray, g: np.ndarray,
         E: np.ndarray | None, e: np.ndarray | None, C: np.ndarray | None,
         lo: np.ndarray | None, up: np.ndarray | None) -> tuple[np.ndarray, bool]:
-    """Call the backend; on failure retry once with bounds relaxed by :data:`RETRY_MARGIN`."""
+    """Call the backend; on failure retry once with bounds relaxed by :data:`RETRY_MARGIN`.
+
+    The cost is normalised first (``H / s``, ``g / s`` with ``s`` the largest entry
+    of ``H``): the minimiser does not change, and the backends' absolute
+    tolerances then mean the same thing for levels of any scale.
+    """
+    scale = float(np.abs(H).max()) if H.size else 0.0
+    if scale > 0.0 and (scale < 0.1 or scale > 10.0):
+        H = H / scale
+        g = g / scale
     v, ok = backend.solve(slot, H, g, E, e, C, lo, up)
     if ok or C is None or lo is None or up is None:
         return v, ok

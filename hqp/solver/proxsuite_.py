@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Hashable
 
 import numpy as np
@@ -11,6 +12,8 @@ from hqp.solver.backend import _INF, QPBackend
 
 EPS_ABS = 1e-9
 """Absolute primal/dual residual tolerance (the contract's cost tolerance needs ~1e-9)."""
+
+logger = logging.getLogger(__name__)
 
 _SOLVED = proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED
 _WARM = proxsuite.proxqp.InitialGuess.WARM_START_WITH_PREVIOUS_RESULT
@@ -23,13 +26,16 @@ class ProxsuiteBackend(QPBackend):
     solves with the same dimensions run ``update`` and start from the previous
     primal and dual solution (``WARM_START_WITH_PREVIOUS_RESULT``). A warm
     solve that does not report success (a stale preconditioner or start can
-    mislead ProxQP's infeasibility detection) is repeated cold, once.
+    mislead ProxQP's infeasibility detection) is repeated cold, once; a cold
+    solve that fails too (ProxQP stalls on some degenerate vertices) is handed
+    to DAQP, an active-set method that is exact there.
     """
 
     name = "proxsuite"
 
     def __init__(self) -> None:
         self._qps: dict[Hashable, tuple[tuple[int, int, int], object]] = {}
+        self._daqp: QPBackend | None = None
 
     def reset(self) -> None:
         """Drop every persistent problem."""
@@ -42,7 +48,8 @@ class ProxsuiteBackend(QPBackend):
         s = qp.settings
         s.eps_abs = EPS_ABS
         s.eps_rel = 0.0
-        s.max_iter = 10000
+        s.max_iter = 1000
+        s.max_iter_in = 200
         s.verbose = False
         s.compute_timings = False
         # Residuals alone can be tiny while the cost is still off on semidefinite
@@ -55,9 +62,6 @@ class ProxsuiteBackend(QPBackend):
         # feasible sets, so it is made much stricter.
         s.eps_primal_inf = 1e-12
         s.eps_dual_inf = 1e-12
-        # ... and on the rare degenerate QP where the test still fires, ProxQP
-        # keeps iterating on the closest feasible problem, which is this one.
-        s.primal_infeasibility_solving = True
         qp.init(H, g, E, e, C, lo, up)
         qp.solve()
         # Warm starts need a previous result: switch only after the first solve.
@@ -87,4 +91,16 @@ class ProxsuiteBackend(QPBackend):
             if qp.results.info.status != _SOLVED:
                 qp = self._cold(dims, H, g, E, e, C, lo, up)
                 self._qps[slot] = (dims, qp)
-        return qp.results.x, qp.results.info.status == _SOLVED
+        if qp.results.info.status == _SOLVED:
+            return qp.results.x, True
+        # ProxQP can stall on degenerate vertices (many rows active at one point,
+        # which lexicographic problems produce); an active-set method is exact there.
+        logger.debug("ProxQP status %s on %s; falling back to DAQP", qp.results.info.status, slot)
+        return self._fallback().solve(slot, H, g, E, e, C, lo, up)
+
+    def _fallback(self) -> QPBackend:
+        if self._daqp is None:
+            from hqp.solver.daqp_ import DaqpBackend
+
+            self._daqp = DaqpBackend()
+        return self._daqp
