@@ -31,8 +31,9 @@ from hqp.tasks.base import Category, Task
 DT = 1e-3
 """Control and simulation period [s]."""
 
-BACKEND = "daqp"
-"""QP backend of the HQP controller in the scenarios."""
+BACKEND = "quadprog"
+"""QP backend of the HQP controller in the scenarios (daqp and proxsuite fell back to the
+safe command on the hand-reach stack when this was written)."""
 
 
 @dataclass
@@ -123,13 +124,14 @@ def make_controller(
 
         stack = build_stack(robot, model, hierarchy)
         return WholeBodyController(model, feet_contacts(robot, model), stack, dt=DT,
-                                   backend=BACKEND)
+                                   backend=BACKEND, diagnostics="residuals")
     if kind == "nullspace":
         from hqp.nullspace import NullSpaceController, papers_joint_limits
 
         stack = build_stack(robot, model, hierarchy)
         papers_joint_limits(stack, zone=zone, gains=zone_gains)
-        return NullSpaceController(model, feet_contacts(robot, model), stack, dt=DT)
+        return NullSpaceController(model, feet_contacts(robot, model), stack, dt=DT,
+                                   diagnostics="residuals")
     raise UnknownName("controller", kind, ("hqp", "nullspace"))
 
 

@@ -98,3 +98,52 @@ def test_plot_panels_writes_a_png(tmp_path) -> None:
     assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     with pytest.raises(InvalidInput, match="curve 'bad'"):
         plot_panels([Panel("p", "y", t, (Line("bad", t[:-1]),))], tmp_path / "x.png")
+
+
+# -- registry and names ----------------------------------------------------------------------
+
+
+def test_unknown_names_list_the_valid_ones() -> None:
+    from comparisons import SCENARIOS, get_scenario
+    from hqp.errors import UnknownName
+
+    assert SCENARIOS == ("hand-reach", "obstacle", "box-grab", "screwgun")
+    with pytest.raises(UnknownName, match="valid scenarios: box-grab, hand-reach, obstacle"):
+        get_scenario("hand_reach")
+    scenario = get_scenario("hand-reach")
+    with pytest.raises(UnknownName, match="valid controllers: hqp, nullspace, placo"):
+        scenario.run(controllers=["tsid"])
+    with pytest.raises(UnknownName, match="paper-humanoid"):
+        scenario.run(robot="g1")
+    with pytest.raises(InvalidInput, match="duration"):
+        scenario.run(duration=0.0)
+
+
+def test_contract_json_shape_and_table() -> None:
+    from comparisons.base import RunResult, RunSpec, ScenarioResult
+    from comparisons.report import format_table
+
+    n = 11
+    trace = _trace(n, hand=np.zeros((n, 3)), hand_goal=np.ones((n, 3)), step_ms=np.ones(n))
+    runs = []
+    for c in ("hqp", "nullspace"):
+        for h in ("shared", "cog-first"):
+            r = RunResult(RunSpec(c, h), {}, trace, [])
+            r.metrics = run_metrics(trace)
+            runs.append(r)
+    result = ScenarioResult("hand-reach", "paper-humanoid", runs)
+    payload = result.to_json()
+    assert list(payload) == ["scenario", "robot", "runs"]
+    keys = {"controller", "hierarchy", "cog_error_max_mm", "cog_error_final_mm",
+            "hand_final_distance_cm", "joint_limit_violation_max_rad", "step_time_median_ms",
+            "fell"}
+    for row in payload["runs"]:
+        assert keys <= set(row)
+        assert isinstance(row["fell"], bool)
+        assert all(isinstance(row[k], float) for k in keys - {"controller", "hierarchy", "fell"})
+    assert {(r["controller"], r["hierarchy"]) for r in payload["runs"]} == {
+        ("hqp", "shared"), ("hqp", "cog-first"), ("nullspace", "shared"),
+        ("nullspace", "cog-first")}
+    table = format_table(result)
+    assert "x max [mm]" in table and "y final [mm]" in table
+    assert len(table.splitlines()) == 3 + 4
