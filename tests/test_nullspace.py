@@ -343,3 +343,135 @@ def test_singular_task_reported_by_both_controllers():
     assert eigs[-1] < 1e-10 * eigs[0] and sigmas[-1] < 1e-8 * sigmas[0]
     assert statuses[0] == (Feasibility.SATISFIED, Feasibility.SATISFIED)
     assert statuses[-1] == (Feasibility.SINGULAR, Feasibility.SINGULAR)
+
+
+# -- closed loop in MuJoCo ------------------------------------------------------------------
+
+
+def joint_limit_violation(log, model) -> np.ndarray:
+    """Excursion past the controller model's joint limits per step ``(N,)`` [rad] (<= 0: none)."""
+    qa = log.q[:, model.nq_base:]
+    return np.max(np.maximum(qa - model.q_upper, model.q_lower - qa), axis=1)
+
+
+@pytest.mark.slow
+def test_paper_humanoid_stands_10s_under_the_law(paper_humanoid):
+    from hqp.nullspace import standing_nullspace_controller
+    from hqp.sim.run import Push, simulate
+
+    robot = paper_humanoid
+    ctrl = standing_nullspace_controller(robot, diagnostics="residuals")
+    log = simulate(robot, ctrl, 10.0, [Push(1.0, (30.0, 0.0, 0.0), 0.1)])
+    assert not log.fell
+    assert log.t[-1] >= 10.0 - 2e-3
+    assert log.clip_count == 0 and not log.safe_mode.any()
+    assert log.foot_slip().max() < 2e-3 and log.foot_lift().max() < 2e-3  # [m]
+    assert np.nanmin(log.support_margin) > 0.02  # CoM stays well inside the feet [m]
+    np.testing.assert_allclose(log.com[-1, :2], log.com[0, :2], atol=5e-3)  # back over the feet
+    assert joint_limit_violation(log, ctrl.model).max() <= 0.0
+
+
+@pytest.mark.slow
+def test_law_without_zones_breaks_a_joint_limit_hqp_does_not(paper_humanoid):
+    """The case the HQP design is about (seed 003 sec. 5): an out-of-reach hand target.
+
+    The plain law (no activation zones) drives joints past their limits (and the robot falls,
+    since it has no contact or torque limits either); HQP keeps every joint inside its viable
+    bounds and stays up, with the hand task reported in conflict.
+    """
+    from hqp.nullspace import make_standing_controller
+    from hqp.sim.run import simulate
+    from hqp.tasks.position import PositionTask
+
+    robot = paper_humanoid
+    results = {}
+    for kind, extra in (("nullspace", {"joint_limit_zones": False}), ("hqp", {})):
+        ctrl = make_standing_controller(kind, robot, diagnostics="residuals", **extra)
+        m = ctrl.model
+        m.update(robot.q_standing, np.zeros(m.nv))
+        hand = PositionTask(m, robot.hands[1], name="hand", kp=40.0, max_velocity=0.5)
+        hand.set_goal(m.frame_placement(robot.hands[1]).translation + [0.2, -0.2, -1.0])
+        ctrl.stack.add(hand, "operational")
+        log = simulate(robot, ctrl, 1.0, stop_on_fall=True)
+        results[kind] = (log, joint_limit_violation(log, m))
+    log, viol = results["nullspace"]
+    first = int(np.argmax(viol > 0.05))
+    assert viol[first] > 0.05, "the plain law kept the joints inside their limits"
+    assert log.fell_at is None or log.t[first] < log.fell_at  # past a limit before falling
+    log, viol = results["hqp"]
+    assert not log.fell
+    assert viol.max() < 1e-3  # [rad]
+    assert "conflict" in log.status["hand"][-1]
+
+
+def test_internal_forces_change_contact_wrenches_not_accelerations(paper_humanoid):
+    """Torques in null(Phi) (Sentis et al.'s internal forces) move f, not qdd; "min-norm"
+    picks the least-norm wrenches of that family."""
+    from hqp.model import RobotState
+    from hqp.nullspace import NullSpaceController
+
+    robot = paper_humanoid
+    q = robot.q_standing.copy()
+    q[7:] += np.random.default_rng(5).normal(scale=0.03, size=q.size - 7)
+    out = {}
+    for mode in ("none", "min-norm"):
+        m = robot.model()
+        ctrl = NullSpaceController(m, stack=standing_stack(m, robot, robot.q_standing,
+                                                           full_posture=False),
+                                   internal_forces=mode)
+        cmd = ctrl.step(RobotState(q, np.zeros(m.nv)), 0.0)
+        out[mode] = (cmd, ctrl.last_law, ctrl)
+    (c0, law0, ctrl), (c1, law1, _) = out["none"], out["min-norm"]
+    np.testing.assert_allclose(c1.qdd, c0.qdd, atol=1e-9)
+    assert np.linalg.norm(law1.tau_internal) > 1e-3 and not law0.tau_internal.any()
+    # The internal torque lies in null(Phi) and the dynamics hold with the new wrenches.
+    np.testing.assert_allclose(law1.phi @ law1.tau_internal, 0.0, atol=1e-8)
+    assert np.linalg.norm(law1.f) < np.linalg.norm(law0.f)
+    for cmd in (c0, c1):
+        x = np.concatenate([cmd.qdd] + [cmd.wrenches[s.name] for s in ctrl.layout.contacts])
+        np.testing.assert_allclose(ctrl.torques(x), cmd.tau, atol=1e-7)
+
+
+def test_activation_zone_locks_the_joint_at_the_top(paper_humanoid):
+    """Joints inside their zone get the zone's reference acceleration whatever the tasks below
+    ask (seed 003 eq. 12, 25): the papers' joint-limit handling."""
+    from hqp.model import RobotState
+    from hqp.nullspace import papers_joint_limits, standing_nullspace_controller
+    from hqp.tasks.joint_limit_zone import JointLimitZone
+    from hqp.tasks.joint_limits import JointLimits
+
+    robot = paper_humanoid
+    ctrl = standing_nullspace_controller(robot)
+    assert not any(isinstance(t, JointLimits) for t in ctrl.stack.tasks)
+    zone = next(t for t in ctrl.stack.tasks if isinstance(t, JointLimitZone))
+    m = ctrl.model
+    q = robot.q_standing.copy()
+    j = m.joint_index("right_elbow")
+    q[7 + j] = m.q_upper[j] - 0.02  # inside the 0.1 rad zone of the elbow's upper limit
+    v = np.zeros(m.nv)
+    v[6 + j] = 0.5  # moving towards the limit
+    cmd = ctrl.step(RobotState(q, v), 0.0)
+    rows = ctrl.last_built.rows[zone.name]
+    assert rows.A.shape[0] >= 1 and rows.A[:, 6 + j].any()
+    np.testing.assert_allclose(rows.A @ ctrl.last_x, rows.b, atol=1e-8)
+    assert cmd.qdd[6 + j] < -10.0  # braking hard, away from the limit
+    assert cmd.report[zone.name].status.value == "satisfied"
+    with pytest.raises(HQPError):
+        papers_joint_limits(ctrl.stack.__class__(["physics"]), zone=0.1)
+
+
+def test_controller_by_name_and_bad_arguments(paper_humanoid):
+    from hqp.controller import WholeBodyController
+    from hqp.nullspace import NullSpaceController, make_standing_controller
+
+    assert isinstance(make_standing_controller("nullspace", paper_humanoid), NullSpaceController)
+    assert isinstance(make_standing_controller("hqp", paper_humanoid), WholeBodyController)
+    with pytest.raises(HQPError, match="nullspace"):
+        make_standing_controller("osc", paper_humanoid)
+    m = paper_humanoid.model()
+    with pytest.raises(HQPError, match="internal_forces"):
+        NullSpaceController(m, internal_forces="squeeze")
+    with pytest.raises(HQPError, match="eig_tol"):
+        NullSpaceController(m, eig_tol=0.0)
+    with pytest.raises(HQPError, match="dt"):
+        NullSpaceController(m, dt=-1.0)
