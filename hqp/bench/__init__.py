@@ -1,0 +1,71 @@
+"""Benchmarks: the shared measuring method and a registry of suites.
+
+A suite is a function ``suite(*, quick: bool, progress: Callable[[str], None])
+-> list[dict]`` returning one row per configuration (at least ``robot``,
+``solver``, ``levels``, ``n``, ``median_ms``, ``p95_ms``; ARCHITECTURE.md,
+"Contract: the command line"). Suites are listed in :data:`SUITE_MODULES`
+(imported lazily, so a suite's heavy dependencies load only when it runs) or
+registered with :func:`register_suite`.
+"""
+
+from __future__ import annotations
+
+import importlib
+from collections.abc import Callable
+
+from hqp.bench.method import Timing, measure
+from hqp.errors import UnknownName
+
+Row = dict
+Suite = Callable[..., list[Row]]
+
+_SUITES: dict[str, Suite] = {}
+
+SUITE_MODULES: dict[str, tuple[str, str]] = {
+    "solver": ("hqp.bench.solver_suite", "solver_suite"),
+    "controller": ("hqp.bench.suite_controller", "run"),
+    "recorded": ("hqp.bench.suite_recorded", "run"),
+}
+"""Suite name -> (module, function), imported on first use. Each function
+accepts the keywords ``quick`` and ``progress`` and returns the rows."""
+
+
+def register_suite(name: str) -> Callable[[Suite], Suite]:
+    """Register ``fn`` as the suite called ``name`` (decorator)."""
+
+    def deco(fn: Suite) -> Suite:
+        _SUITES[name] = fn
+        return fn
+
+    return deco
+
+
+def suite_names() -> list[str]:
+    """Names of the known suites."""
+    return sorted(set(_SUITES) | set(SUITE_MODULES))
+
+
+def get_suite(name: str) -> Suite:
+    """Return the suite called ``name``, importing its module if needed.
+
+    Raises:
+        UnknownName: No such suite.
+
+    """
+    if name not in _SUITES and name in SUITE_MODULES:
+        module, function = SUITE_MODULES[name]
+        _SUITES[name] = getattr(importlib.import_module(module), function)
+    if name not in _SUITES:
+        raise UnknownName("suite", name, suite_names())
+    return _SUITES[name]
+
+
+def run_suite(
+    name: str, quick: bool = False, progress: Callable[[str], None] | None = None
+) -> dict:
+    """Run a suite; return ``{"suite": name, "rows": [...]}``."""
+    rows = get_suite(name)(quick=quick, progress=progress or (lambda _msg: None))
+    return {"suite": name, "rows": rows}
+
+
+__all__ = ["Timing", "get_suite", "measure", "register_suite", "run_suite", "suite_names"]

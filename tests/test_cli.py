@@ -1,0 +1,49 @@
+"""The ``hqp`` command line: bench subcommand, JSON on stdout alone, errors."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+
+from hqp.cli import build_parser, main
+
+ENV = {**os.environ, "OMP_NUM_THREADS": "1"}
+
+
+def _hqp(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "hqp.cli", *args], capture_output=True,
+                          text=True, env=ENV, timeout=300)
+
+
+def test_bench_solver_quick_json():
+    proc = _hqp("bench", "--suite", "solver", "--quick", "--json")
+    assert proc.returncode == 0, proc.stderr
+    result = json.loads(proc.stdout)  # stdout holds the JSON object alone
+    assert result["suite"] == "solver"
+    for row in result["rows"]:
+        assert {"robot", "solver", "levels", "n", "median_ms", "p95_ms"} <= set(row)
+        assert row["robot"] is None
+    assert {"basis/proxsuite", "cascade/proxsuite", "daqp-hier"} <= {
+        r["solver"] for r in result["rows"]}
+
+
+def test_bench_table_and_plot(tmp_path, capsys):
+    assert main(["bench", "--suite", "solver", "--quick", "--plot", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "suite: solver" in out and "basis/proxsuite" in out
+    assert sorted(p.name for p in tmp_path.iterdir()) == [
+        "bench_solver_2levels.png", "bench_solver_4levels.png"]
+
+
+def test_unknown_suite_is_an_error(capsys):
+    assert main(["bench", "--suite", "nope"]) == 2
+    err = capsys.readouterr().err
+    assert "unknown suite 'nope'" in err and "solver" in err
+
+
+def test_subcommands_are_registered():
+    parser = build_parser()
+    sub = next(a for a in parser._actions if a.dest == "command")
+    assert "bench" in sub.choices
