@@ -52,7 +52,7 @@ from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
-from scipy.linalg import lapack, solve_triangular
+from scipy.linalg import lapack
 
 from hqp.errors import InvalidInput, InvalidLevel, SolverFailure, UnknownName, check_array
 from hqp.solver.backend import QPBackend, make_backend
@@ -64,7 +64,8 @@ logger = logging.getLogger(__name__)
 _dgeqp3 = lapack.dgeqp3
 _dgeqrf = lapack.dgeqrf
 _dorgqr = lapack.dorgqr
-_solve_triangular = solve_triangular
+_dtrtrs = lapack.dtrtrs
+_dgels = lapack.dgels
 _ZERO = np.zeros(0)
 _NO_ROWS = np.zeros(0, dtype=int)
 
@@ -211,8 +212,9 @@ class HierarchicalSolver:
         backend: QP backend name (see :func:`hqp.solver.available_backends`).
         algorithm: ``"basis"`` (default) or ``"cascade"`` (the baseline).
         rank_tol: Relative rank threshold for the null-space bases, ``0 < rank_tol < 1``.
-        compute_sigma: Compute ``sigma_min`` in the cascade's reports (the basis
-            algorithm gets it from its own factorisations at no cost).
+        compute_sigma: Compute ``sigma_min`` in the reports (``nan`` otherwise). The
+            basis algorithm reuses its projections (one small factorisation per
+            level with active rows); the cascade recomputes the projections.
 
     Raises:
         UnknownBackend: Unknown or uninstalled backend.
@@ -430,7 +432,10 @@ class HierarchicalSolver:
                 pending.append((lv, Ak, Zb, fact))
             times.append(clock() - t0)
         # sigma_min at the solution (its active rows), from the projections above
-        sigmas = [_sigma_level(lv, Ak, Zb, x, fact, rank_tol) for lv, Ak, Zb, fact in pending]
+        if self.compute_sigma:
+            sigmas = [_sigma_level(lv, Ak, Zb, x, fact, rank_tol) for lv, Ak, Zb, fact in pending]
+        else:
+            sigmas = [float("nan")] * len(pending)
         return x, sigmas, qp_count, times
 
     # ---------------------------------------------------------------- cascade
@@ -674,12 +679,14 @@ class _PivotedQR:
         r = self.qr.shape[0]
         if k == 0:
             return np.zeros(r)
-        L = self.qr[:k, :].T  # (m, k): R[:k]^T, lower trapezoidal
         rp = rhs[self.piv]
-        if L.shape[0] == k:
-            z = _solve_triangular(L, rp, lower=True, check_finite=False)
+        if self.qr.shape[1] == k:
+            # square lower-triangular R^T: one triangular solve
+            z = _dtrtrs(self.qr[:k, :k], rp, trans=1)[0]
         else:
-            z = np.linalg.lstsq(np.tril(L), rp, rcond=None)[0]
+            # more rows than rank: least squares on the (m, k) trapezoid R[:k]^T
+            L = np.tril(self.qr[:k, :].T)
+            z = _dgels(L, rp)[1][:k]
         return self.Q()[:, :k] @ z
 
     def singular_values(self) -> np.ndarray:
@@ -758,28 +765,31 @@ def _append_independent(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Append the rows of ``A`` to ``E`` that are independent of the rows held.
 
+    The rows of ``A`` are projected off the span of the held rows, then a
+    pivoted QR of the residuals picks the independent ones (distance to the
+    span above :data:`INDEPENDENT_TOL` times the row's norm).
+
     Args:
         E: Held rows ``(q, n)``.
         Q: Orthonormal basis of their span ``(n, q)``.
         A: Candidate rows ``(m, n)``.
 
     Returns:
-        The new ``(E, Q)`` (Gram-Schmidt, applied twice for stability).
+        The new ``(E, Q)``.
 
     """
-    keep = []
-    cols = [Q]
-    for i, a in enumerate(A):
-        na = float(np.linalg.norm(a))
-        if na == 0.0:
-            continue
-        B = np.concatenate(cols, axis=1) if len(cols) > 1 else cols[0]
-        r = a - B @ (B.T @ a)
-        r -= B @ (B.T @ r)
-        nr = float(np.linalg.norm(r))
-        if nr > INDEPENDENT_TOL * na:
-            keep.append(i)
-            cols.append((r / nr)[:, None])
-    if not keep:
+    R = A - (A @ Q) @ Q.T if Q.shape[1] else A.copy()
+    R -= (R @ Q) @ Q.T if Q.shape[1] else 0.0
+    norms = np.sqrt(np.einsum("ij,ij->i", A, A))
+    qr, jpvt, tau, _work, _info = _dgeqp3(np.asfortranarray(R.T))
+    piv = jpvt - 1
+    d = np.abs(np.diagonal(qr))
+    keep = piv[: d.size][d > INDEPENDENT_TOL * np.maximum(norms[piv[: d.size]], 1e-300)]
+    k = keep.size
+    if k == 0:
         return E, Q
-    return np.concatenate([E, A[keep]]), np.concatenate(cols, axis=1)
+    # the first k columns of the QR's orthogonal factor span the kept residuals
+    n = R.shape[1]
+    a = np.array(qr[:, :k], order="F")
+    Qk = _dorgqr(a, tau[:k])[0] if k <= n else a
+    return np.concatenate((E, A[keep])), np.concatenate((Q, Qk[:, :k]), axis=1)

@@ -54,9 +54,9 @@ class CheckedLevel:
     upper: np.ndarray
     name: str
     lo_scale: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    """``max(1, |lower|)`` per row (1 where infinite): scale of row tolerances."""
+    """``max(1, |lower|)`` per row (``1e300`` where infinite): scale of row tolerances."""
     up_scale: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    """``max(1, |upper|)`` per row (1 where infinite)."""
+    """``max(1, |upper|)`` per row (``1e300`` where infinite)."""
     bounded: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
     """Rows with at least one finite bound."""
     a_scale: float = 0.0
@@ -89,14 +89,24 @@ def _as_float(value: Any, k: int, name: str, field: str) -> np.ndarray:
 
 
 def _finite_or_raise(arr: np.ndarray, k: int, name: str, field: str, allow_inf: bool) -> None:
+    # One reduction first (NaN propagates through a sum; inf too, or overflow, in
+    # which case the detailed checks below decide).
+    total = float(arr.sum()) if arr.size else 0.0
     if allow_inf:
+        if total == total:
+            return
         if np.isnan(arr).any():
             raise InvalidLevel(f"{_where(k, name, field)}: contains NaN")
+        return
+    if -_HUGE < total < _HUGE:
         return
     if not np.isfinite(arr).all():
         what = "NaN" if np.isnan(arr).any() else "inf"
         bad = np.argwhere(~np.isfinite(arr))[0].tolist()
         raise InvalidLevel(f"{_where(k, name, field)}: contains {what} (at index {bad})")
+
+
+_HUGE = float("inf")
 
 
 def _matrix(value: Any, k: int, name: str, field: str) -> np.ndarray:
@@ -177,9 +187,9 @@ def check_level(level: Any, k: int, n: int | None) -> CheckedLevel:
     lo_s = up_s = _EMPTY
     bounded = _NO_BOOL
     if C.shape[0]:
-        if (lower == np.inf).any():
+        if float(lower.max()) == np.inf:
             raise InvalidLevel(f"{_where(k, name, 'lower')}: contains +inf")
-        if (upper == -np.inf).any():
+        if float(upper.min()) == -np.inf:
             raise InvalidLevel(f"{_where(k, name, 'upper')}: contains -inf")
         if (lower > upper).any():
             bad = np.flatnonzero(lower > upper)
@@ -188,10 +198,10 @@ def check_level(level: Any, k: int, n: int | None) -> CheckedLevel:
                 f"{_where(k, name, 'lower/upper')}: lower > upper at row {i} "
                 f"({lower[i]:g} > {upper[i]:g}); {bad.size} such row(s)"
             )
-        lo_s = np.abs(lower)
-        lo_s[~(lo_s < np.inf) | (lo_s < 1.0)] = 1.0
-        up_s = np.abs(upper)
-        up_s[~(up_s < np.inf) | (up_s < 1.0)] = 1.0
+        # max(1, |bound|), and a huge finite scale for infinite bounds (whose
+        # tolerance never matters: nothing is near an infinite bound)
+        lo_s = np.clip(np.abs(lower), 1.0, 1e300)
+        up_s = np.clip(np.abs(upper), 1.0, 1e300)
         bounded = (lower > -np.inf) | (upper < np.inf)
     a_scale = float(np.abs(A).max()) if A.shape[0] and A.shape[1] else 0.0
     return CheckedLevel(A, b, C, lower, upper, name, lo_s, up_s, bounded, a_scale)
