@@ -25,6 +25,7 @@ SUITE_MODULES: dict[str, tuple[str, str]] = {
     "solver": ("hqp.bench.solver_suite", "solver_suite"),
     "controller": ("hqp.bench.suite_controller", "run"),
     "recorded": ("hqp.bench.suite_recorded", "run"),
+    "all": ("hqp.bench.suite_all", "run"),
 }
 """Suite name -> (module, function), imported on first use. Each function
 accepts the keywords ``quick`` and ``progress`` and returns the rows."""

@@ -4,7 +4,9 @@ Every configuration is a callable doing one unit of work (one control step, one 
 callables are run in rounds: in each round every configuration runs ``batch`` calls, in a
 rotated order, each call timed with :func:`time.perf_counter`. A slow period of the machine
 (other processes on the same cores) therefore hits every configuration alike, and the ratios
-between their medians stay meaningful even when the absolute times drift.
+between their medians stay meaningful even when the absolute times drift. Each call is also
+timed in CPU time of the process (:func:`time.process_time`), which leaves out the periods
+when the process waits for a core: on a shared machine it is the steadier figure.
 
 Method: ``warmup`` untimed calls of each configuration first (caches, persistent QPs, warm
 starts); then rounds until every configuration has at least ``min_samples`` timed calls and
@@ -16,7 +18,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -28,11 +30,18 @@ class Timing:
     Attributes:
         samples: Wall-clock durations of the timed calls ``(N,)`` [s].
         settled: Whether the median settled before the time budget ran out.
+        cpu: CPU time of the process during each call ``(N,)`` [s] (empty if not measured).
 
     """
 
     samples: np.ndarray
     settled: bool
+    cpu: np.ndarray = field(default_factory=lambda: np.zeros(0))
+
+    @property
+    def cpu_median_ms(self) -> float:
+        """Median CPU time [ms] (``nan`` if not measured)."""
+        return float(np.median(self.cpu) * 1e3) if self.cpu.size else float("nan")
 
     @property
     def median_ms(self) -> float:
@@ -77,6 +86,8 @@ def interleaved(
         for _ in range(warmup):
             fn()
     samples: dict[str, list[float]] = {name: [] for name in names}
+    cpu: dict[str, list[float]] = {name: [] for name in names}
+    cpu_clock = time.process_time
     last_median = dict.fromkeys(names, np.nan)
     settled = dict.fromkeys(names, False)
     start = clock()
@@ -86,10 +97,14 @@ def interleaved(
         for name in order:
             fn = fns[name]
             out = samples[name]
+            out_cpu = cpu[name]
             for _ in range(batch):
+                c0 = cpu_clock()
                 t0 = clock()
                 fn()
-                out.append(clock() - t0)
+                t1 = clock()
+                out_cpu.append(cpu_clock() - c0)
+                out.append(t1 - t0)
         r += 1
         for name in names:
             med = float(np.median(samples[name]))
@@ -101,4 +116,5 @@ def interleaved(
             progress(f"round {r}: {sum(settled.values())}/{len(names)} settled")
         if all(settled.values()) or clock() - start > max_seconds:
             break
-    return {name: Timing(np.asarray(samples[name]), settled[name]) for name in names}
+    return {name: Timing(np.asarray(samples[name]), settled[name], np.asarray(cpu[name]))
+            for name in names}

@@ -1,8 +1,9 @@
 """Peers of the contract solver measured by the benchmark: DAQP's hierarchy, the null-space law.
 
-* :func:`daqp_hierarchy`: DAQP's native hierarchical mode (``daqp.solve(None, None, ...,
-  break_points=...)``). It solves a *different* problem (ARCHITECTURE.md): each level
-  minimises the row-normalised violations ``sum_i dist(c_i x, [l_i, u_i])^2 / ||c_i||^2``;
+* :class:`DaqpHierarchy`: DAQP's native hierarchical mode (:mod:`hqp.bench.daqp_hier`:
+  ``daqp.solve(..., break_points=...)``), the level data stacked at every solve. It solves
+  a *different* problem (ARCHITECTURE.md): each level minimises the row-normalised
+  violations ``sum_i dist(c_i x, [l_i, u_i])^2 / ||c_i||^2``;
   it is timed beside the contract's algorithms and its level-cost excess against the contract
   is reported.
 * :func:`nullspace_law_x`: the papers' prioritised torque law
@@ -18,18 +19,10 @@ from collections.abc import Sequence
 import numpy as np
 
 from hqp.solver import Level
-from hqp.solver.level import check_level
-
-DAQP_INF = 1e30
-"""DAQP's infinity for absent bounds."""
 
 
 class DaqpHierarchy:
-    """DAQP's hierarchical least-squares mode on contract levels (stacked once per call).
-
-    Equality rows have DAQP's sense 5 (active, immutable); inequality rows sense 0; one break
-    point after each non-empty level.
-    """
+    """DAQP's hierarchy on contract levels (:mod:`hqp.bench.daqp_hier`), stacked on every call."""
 
     name = "daqp-hier"
 
@@ -40,42 +33,9 @@ class DaqpHierarchy:
             InvalidLevel: Malformed levels (as the contract solver).
 
         """
-        import daqp
+        from hqp.bench.daqp_hier import daqp_hierarchy_data, solve_daqp_hierarchy
 
-        rows: list[np.ndarray] = []
-        up: list[np.ndarray] = []
-        lo: list[np.ndarray] = []
-        sense: list[np.ndarray] = []
-        breaks: list[int] = []
-        n = None
-        total = 0
-        for k, level in enumerate(levels):
-            lv = check_level(level, k, n)
-            n = lv.A.shape[1]
-            m = 0
-            if lv.m_eq:
-                rows.append(lv.A)
-                up.append(lv.b)
-                lo.append(lv.b)
-                sense.append(np.full(lv.m_eq, 5, dtype=np.int32))
-                m += lv.m_eq
-            if lv.m_in:
-                keep = lv.bounded
-                rows.append(lv.C[keep])
-                up.append(np.minimum(lv.upper[keep], DAQP_INF))
-                lo.append(np.maximum(lv.lower[keep], -DAQP_INF))
-                sense.append(np.zeros(int(keep.sum()), dtype=np.int32))
-                m += int(keep.sum())
-            if m:
-                total += m
-                breaks.append(total)
-        if n is None or not rows:
-            return np.zeros(0 if n is None else n), 1
-        A = np.ascontiguousarray(np.concatenate(rows))
-        x, _fval, flag, _info = daqp.solve(
-            None, None, A, np.concatenate(up), np.concatenate(lo), np.concatenate(sense),
-            np.asarray(breaks, dtype=np.int32))
-        return np.asarray(x, dtype=float), int(flag)
+        return solve_daqp_hierarchy(daqp_hierarchy_data(levels))
 
 
 def nullspace_law_x(step: object) -> np.ndarray:

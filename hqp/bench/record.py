@@ -1,8 +1,9 @@
 """Record the level matrices of real control steps (``python -m hqp.bench.record``).
 
 Each *source* runs one closed loop in MuJoCo with the HQP controller
-(:class:`~hqp.controller.WholeBodyController`) and captures, at evenly spaced times, what the
-controller handed to its solver (:func:`hqp.bench.recorded.capture`). Sources:
+(:class:`~hqp.controller.WholeBodyController`, basis algorithm on :data:`BACKEND`) and
+captures, at evenly spaced times, what the controller handed to its solver
+(:func:`hqp.bench.recorded.capture`). Sources:
 
 - ``hand-reach`` on ``paper-humanoid``: the hierarchy paper's experiment
   (:mod:`comparisons.hand_reach`, hierarchy ``cog-first``), joint limits reached;
@@ -31,6 +32,10 @@ import numpy as np
 from hqp.bench.recorded import DATA_DIR, RecordedStep, capture, save
 
 logger = logging.getLogger(__name__)
+
+BACKEND = "daqp"
+"""Backend of the recorded controllers (the recorded matrices do not depend on it beyond the
+solver's round-off along the trajectory; DAQP is the fastest here)."""
 
 
 @dataclass(frozen=True)
@@ -82,8 +87,10 @@ def _push_force(source: Source, t: float, mass: float) -> np.ndarray | None:
 def _run_behavior(source: Source, robot: str, on_step: Callable[[Any, float], None]) -> str:
     from hqp.behaviors.runner import prepare
     from hqp.sim.simulator import FALL_HEIGHT_RATIO, Simulator
+    from hqp.solver import HierarchicalSolver
 
     behavior, ctrl, rob = prepare(source.name, robot=robot, controller="hqp")
+    ctrl.solver = HierarchicalSolver(BACKEND, "basis")
     sim = Simulator(rob)
     ctrl.dt = sim.dt
     mass = float(sum(i.mass for i in ctrl.model.model.inertias))
@@ -117,6 +124,9 @@ def _run_scenario(source: Source, robot: str, on_step: Callable[[Any, float], No
     spec = RunSpec(controller="hqp", hierarchy="cog-first")
     rob, model, hierarchy, _ = scenario.build(robot, spec)
     ctrl = make_controller("hqp", rob, model, hierarchy)
+    from hqp.solver import HierarchicalSolver
+
+    ctrl.solver = HierarchicalSolver(BACKEND, "basis")
     pushes = [Push(t0, f, d) for t0, f, d in source.pushes]
     log = simulate(rob, ctrl, source.duration, pushes,
                    on_step=lambda sim, cmd: on_step(ctrl, cmd.t))

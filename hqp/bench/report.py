@@ -7,6 +7,8 @@ from pathlib import Path
 from typing import Any
 
 COLUMNS = (
+    ("suite", "suite"),
+    ("source", "source"),
     ("robot", "robot"),
     ("solver", "solver"),
     ("n", "n"),
@@ -14,9 +16,13 @@ COLUMNS = (
     ("rows", "rows"),
     ("median_ms", "median [ms]"),
     ("p95_ms", "p95 [ms]"),
+    ("cpu_median_ms", "cpu [ms]"),
     ("speedup_vs_cascade", "cascade/basis"),
     ("ratio_to_basis_proxsuite", "x basis/proxsuite"),
     ("cost_excess", "cost excess"),
+    ("over_nullspace", "x nullspace"),
+    ("over_placo", "x placo"),
+    ("over_placo_cpu", "x placo (cpu)"),
 )
 
 
@@ -65,6 +71,12 @@ def write_plots(result: dict, directory: str | Path) -> list[Path]:
     out.mkdir(parents=True, exist_ok=True)
     rows = result.get("rows", [])
     paths = []
+    if result.get("suite") in ("controller", "recorded", "all"):
+        # time against size and per-level accuracy of whole steps (hqp.bench.plots)
+        from hqp.bench.plots import write_suite_plots
+
+        paths += write_suite_plots(result, out)
+        rows = [r for r in rows if r.get("suite", result.get("suite")) == "solver"]
     for levels in sorted({r.get("levels") for r in rows if r.get("levels") is not None}):
         fig, ax = plt.subplots(figsize=(6, 4))
         sub = [r for r in rows if r.get("levels") == levels]

@@ -18,8 +18,8 @@ rounds, one BLAS thread (PlaCo is single-threaded).
 
 Extra fields: ``phases_ms`` (median model update, rows, solve, torques, report of the step),
 ``levels_ms`` (median time of each level in the solve), ``over_placo`` (median over PlaCo's
-median, same robot, same run), ``excess``/``excess_rel`` (level costs over the tightest hqp
-configuration, on the levels of the hqp controller at the same states).
+median, same robot, same run), ``level_cost_excess`` and ``cost_excess`` (level costs over the
+tightest hqp configuration, on the levels of the hqp controller at the same states).
 """
 
 from __future__ import annotations
@@ -40,7 +40,8 @@ T0 = 1.0
 """Control time of the first measured step [s] (after the stack's task ramps)."""
 
 SLOW_SECONDS = 0.25
-"""A configuration slower than this per step (median of a probe) is not interleaved."""
+"""A configuration taking more CPU time than this per step (median of a probe pass over the
+states) is not interleaved: its row reports the probe (``"probe_only": true``)."""
 
 
 def states(robot_name: str, count: int = 8, seed: int = 0) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -170,20 +171,23 @@ def run_robot(robot_name: str, names: Sequence[str], *, quick: bool = False,
         except Exception as exc:  # noqa: BLE001 - an unavailable configuration is reported
             failed[name] = f"{type(exc).__name__}: {exc}"
     # probe: one pass over the states (also the warm-up of persistent QPs)
-    probe: dict[str, np.ndarray] = {}
+    probe: dict[str, Timing] = {}
     for name, st in list(steppers.items()):
         d = []
+        c = []
         try:
             for _ in range(len(sts)):
+                c0 = time.process_time()
                 t0 = time.perf_counter()
                 st()
                 d.append(time.perf_counter() - t0)
+                c.append(time.process_time() - c0)
         except Exception as exc:  # noqa: BLE001 - a failing controller is a result
             failed[name] = f"{type(exc).__name__}: {exc}"
             del steppers[name]
             continue
-        probe[name] = np.asarray(d)
-    slow = {n for n in steppers if np.median(probe[n]) > SLOW_SECONDS}
+        probe[name] = Timing(np.asarray(d), False, np.asarray(c))
+    slow = {n for n in steppers if np.median(probe[n].cpu) > SLOW_SECONDS}
     for st in steppers.values():
         st.record = True
     fns = {n: st for n, st in steppers.items() if n not in slow}
@@ -214,9 +218,10 @@ def run_robot(robot_name: str, names: Sequence[str], *, quick: bool = False,
             rows.append(row)
             continue
         st = steppers[name]
-        t = timings[name] if name in timings else Timing(probe[name], False)
+        t = timings[name] if name in timings else probe[name]
         row.update(median_ms=round(t.median_ms, 4), p95_ms=round(t.p95_ms, 4),
-                   settled=t.settled, samples=int(t.samples.size))
+                   settled=t.settled, samples=int(t.samples.size),
+                   cpu_median_ms=round(t.cpu_median_ms, 4) if t.cpu.size else None)
         if name in slow:
             row["probe_only"] = True
         if st.phases:
@@ -229,19 +234,18 @@ def run_robot(robot_name: str, names: Sequence[str], *, quick: bool = False,
                                 for k in range(L)]
         if name in ex:
             e = ex[name]
-            row["excess"] = [float(f"{v:.3g}") for v in e]
-            row["excess_rel"] = float(f"{float(np.max(e / np.maximum(1.0, ref))):.3g}")
+            row["level_cost_excess"] = [float(f"{v:.3g}") for v in e]
+            row["cost_excess"] = float(f"{float(np.max(e / np.maximum(1.0, ref))):.3g}")
         rows.append(row)
-    placo = next((r["median_ms"] for r in rows if r["solver"] == "placo" and r.get("median_ms")),
-                 None)
-    law = next((r["median_ms"] for r in rows if r["solver"] == "nullspace"
-                and r.get("median_ms")), None)
-    for r in rows:
-        if r.get("median_ms"):
-            if placo:
-                r["over_placo"] = round(r["median_ms"] / placo, 3)
-            if law:
-                r["over_nullspace"] = round(r["median_ms"] / law, 3)
+    for key, suffix in (("median_ms", ""), ("cpu_median_ms", "_cpu")):
+        placo = next((r[key] for r in rows if r["solver"] == "placo" and r.get(key)), None)
+        law = next((r[key] for r in rows if r["solver"] == "nullspace" and r.get(key)), None)
+        for r in rows:
+            if r.get(key):
+                if placo:
+                    r["over_placo" + suffix] = round(r[key] / placo, 3)
+                if law:
+                    r["over_nullspace" + suffix] = round(r[key] / law, 3)
     return rows
 
 

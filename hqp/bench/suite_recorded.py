@@ -12,9 +12,9 @@ steps' level matrices are solved by:
 
 Timing: :func:`hqp.bench.interleave.interleaved` (every configuration of a source in the same
 rounds). Accuracy: each level's cost at the returned ``x`` minus the tightest contract solution
-of the same step (:mod:`hqp.bench.accuracy`), largest over the steps; ``excess_rel`` is the
+of the same step (:mod:`hqp.bench.accuracy`), largest over the steps; ``cost_excess`` is the
 largest of those relative to ``max(1, tightest cost)``. Basis rows also carry
-``speedup_over_cascade`` (cascade median / basis median, same backend); every row carries
+``speedup_vs_cascade`` (cascade median / basis median, same backend); every row carries
 ``over_nullspace`` (its median / the law's median on the same steps).
 """
 
@@ -80,17 +80,17 @@ def _timed_fn(name: str) -> Callable[[RecordedStep], object]:
 
 
 SLOW_SECONDS = 0.25
-"""A configuration whose solves take longer than this in the accuracy pass (median) is not
-timed again: its row reports the accuracy pass's times (``"probe_only": true``)."""
+"""A configuration whose solves take more CPU time than this in the accuracy pass (median) is
+not timed again: its row reports the accuracy pass's times (``"probe_only": true``)."""
 
 
 def accuracy(steps: Sequence[RecordedStep], names: Sequence[str]
-             ) -> tuple[dict[str, np.ndarray], dict[str, str], np.ndarray, dict[str, np.ndarray]]:
+             ) -> tuple[dict[str, np.ndarray], dict[str, str], np.ndarray, dict[str, Timing]]:
     """Per-level excess (largest over the steps) of each configuration, and failures.
 
     Returns:
         ``(excess by name (L,), error message by failed name, tightest costs (L,) largest over
-        the steps, durations of the accuracy pass's solves by name [s])``.
+        the steps, timings of the accuracy pass's solves by name)``.
 
     """
     import time
@@ -105,6 +105,7 @@ def accuracy(steps: Sequence[RecordedStep], names: Sequence[str]
     L = len(steps[0].levels)
     worst = {name: np.full(L, -np.inf) for name in fns}
     probe: dict[str, list[float]] = {name: [] for name in fns}
+    probe_cpu: dict[str, list[float]] = {name: [] for name in fns}
     ref_max = np.zeros(L)
     for s in steps:
         costs: dict[str, np.ndarray] = {}
@@ -112,9 +113,11 @@ def accuracy(steps: Sequence[RecordedStep], names: Sequence[str]
             if name in failed:
                 continue
             try:
+                c0 = time.process_time()
                 t0 = time.perf_counter()
                 x = fn(s)
                 probe[name].append(time.perf_counter() - t0)
+                probe_cpu[name].append(time.process_time() - c0)
             except Exception as exc:  # noqa: BLE001 - a solver failure is a result
                 failed[name] = f"t={s.t:.3f}: {type(exc).__name__}: {exc}"
                 continue
@@ -128,14 +131,14 @@ def accuracy(steps: Sequence[RecordedStep], names: Sequence[str]
         for name, ex in excess(costs, contract).items():
             worst[name] = np.maximum(worst[name], ex)
     return ({k: v for k, v in worst.items() if k not in failed}, failed, ref_max,
-            {k: np.asarray(v) for k, v in probe.items()})
+            {k: Timing(np.asarray(v), False, np.asarray(probe_cpu[k])) for k, v in probe.items()})
 
 
 def run_source(steps: Sequence[RecordedStep], names: Sequence[str], *, quick: bool = False,
                progress: Callable[[str], None] | None = None) -> list[dict[str, Any]]:
     """Rows of one recorded source (same robot, same level shapes)."""
     ex, failed, ref, probe = accuracy(steps, names)
-    slow = {n for n in names if n not in failed and np.median(probe[n]) > SLOW_SECONDS}
+    slow = {n for n in names if n not in failed and np.median(probe[n].cpu) > SLOW_SECONDS}
     timed = [n for n in names if n not in failed and n not in slow]
     fns = {n: _cycler(steps, _timed_fn(n)) for n in timed}
     settings = dict(warmup=2, batch=2, min_samples=4, max_seconds=2.0) if quick else dict(
@@ -155,32 +158,38 @@ def run_source(steps: Sequence[RecordedStep], names: Sequence[str], *, quick: bo
             row.update(median_ms=None, p95_ms=None, failed=failed[name])
             rows.append(row)
             continue
-        t = timings[name] if name in timings else Timing(probe[name], False)
+        t = timings[name] if name in timings else probe[name]
         if name in slow:
             row["probe_only"] = True
         e = ex[name]
         rel = float(np.max(e / np.maximum(1.0, ref))) if e.size else 0.0
         row.update(median_ms=round(t.median_ms, 4), p95_ms=round(t.p95_ms, 4),
                    settled=t.settled, samples=int(t.samples.size),
-                   excess=[float(f"{v:.3g}") for v in e], excess_rel=float(f"{rel:.3g}"))
+                   cpu_median_ms=round(t.cpu_median_ms, 4) if t.cpu.size else None,
+                   level_cost_excess=[float(f"{v:.3g}") for v in e],
+                   cost_excess=float(f"{rel:.3g}"))
         rows.append(row)
     _ratios(rows)
     return rows
 
 
 def _ratios(rows: list[dict[str, Any]]) -> None:
-    """Add ``speedup_over_cascade`` to basis rows and ``over_nullspace`` to every row."""
-    med = {r["solver"]: r["median_ms"] for r in rows if r.get("median_ms")}
-    law = med.get("nullspace")
-    for r in rows:
-        m = r.get("median_ms")
-        if not m:
-            continue
-        if r.get("algorithm") == "basis":
-            c = med.get(f"cascade/{r['backend']}")
-            r["speedup_over_cascade"] = round(c / m, 3) if c else None
-        if law:
-            r["over_nullspace"] = round(m / law, 3)
+    """Add ``speedup_vs_cascade`` to basis rows and ``over_nullspace`` to every row.
+
+    Both from the wall-clock medians, and with ``_cpu`` from the CPU-time medians.
+    """
+    for key, suffix in (("median_ms", ""), ("cpu_median_ms", "_cpu")):
+        med = {r["solver"]: r[key] for r in rows if r.get(key)}
+        law = med.get("nullspace")
+        for r in rows:
+            m = r.get(key)
+            if not m:
+                continue
+            if r.get("algorithm") == "basis":
+                c = med.get(f"cascade/{r['backend']}")
+                r["speedup_vs_cascade" + suffix] = round(c / m, 3) if c else None
+            if law:
+                r["over_nullspace" + suffix] = round(m / law, 3)
 
 
 def run(*, quick: bool = False, directory: str | Path | None = None,
@@ -219,18 +228,25 @@ def run(*, quick: bool = False, directory: str | Path | None = None,
     return rows
 
 
-def summary(rows: Sequence[dict[str, Any]]) -> dict[str, Any]:
-    """Geometric-mean speed-ups of basis over cascade per backend, and HQP over the law."""
-    out: dict[str, Any] = {"speedup_over_cascade": {}, "basis_over_nullspace": {}}
+def summary(rows: Sequence[dict[str, Any]], cpu: bool = False) -> dict[str, Any]:
+    """Geometric-mean speed-ups of basis over cascade per backend, and HQP over the law.
+
+    Args:
+        rows: Rows of the suite.
+        cpu: From the CPU-time medians (else wall-clock).
+
+    """
+    out: dict[str, Any] = {"speedup_vs_cascade": {}, "basis_over_nullspace": {}}
     by_backend: dict[str, list[float]] = {}
     over_law: dict[str, list[float]] = {}
+    key = "_cpu" if cpu else ""
     for r in rows:
-        if r.get("algorithm") == "basis" and r.get("speedup_over_cascade"):
-            by_backend.setdefault(r["backend"], []).append(r["speedup_over_cascade"])
-        if r.get("algorithm") == "basis" and r.get("over_nullspace"):
-            over_law.setdefault(r["backend"], []).append(r["over_nullspace"])
+        if r.get("algorithm") == "basis" and r.get("speedup_vs_cascade" + key):
+            by_backend.setdefault(r["backend"], []).append(r["speedup_vs_cascade" + key])
+        if r.get("algorithm") == "basis" and r.get("over_nullspace" + key):
+            over_law.setdefault(r["backend"], []).append(r["over_nullspace" + key])
     for b, v in by_backend.items():
-        out["speedup_over_cascade"][b] = round(float(np.exp(np.mean(np.log(v)))), 3)
+        out["speedup_vs_cascade"][b] = round(float(np.exp(np.mean(np.log(v)))), 3)
     for b, v in over_law.items():
         out["basis_over_nullspace"][b] = round(float(np.exp(np.mean(np.log(v)))), 3)
     return out

@@ -1,0 +1,200 @@
+"""Benchmark suites on real control problems: recorded files, peers, accuracy, quick runs.
+
+Quick modes only; no assertion on a measured time.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from hqp.bench.accuracy import excess, level_costs, relative_excess, tightest
+from hqp.bench.interleave import interleaved
+from hqp.bench.peers import DaqpHierarchy, law_to_x, nullspace_law_x
+from hqp.bench.recorded import DATA_DIR, RecordingError, available, capture, load, save
+from hqp.solver import Level, solve
+
+
+@pytest.fixture(scope="module")
+def stepped_controller():
+    """A standing HQP controller on paper-humanoid after a few steps."""
+    from hqp.controller import standing_controller
+    from hqp.model import RobotState
+    from hqp.robots import load as load_robot
+
+    robot = load_robot("paper-humanoid")
+    ctrl = standing_controller(robot, backend="daqp", diagnostics="residuals")
+    rng = np.random.default_rng(3)
+    v = np.zeros(ctrl.model.nv)
+    v[6:] = rng.normal(0.0, 0.05, ctrl.model.nv - 6)
+    for k in range(3):
+        t = 1.0 + 1e-3 * k
+        ctrl.step(RobotState(robot.q_standing.copy(), v, t), t)
+    return ctrl
+
+
+def test_capture_save_load_round_trip(stepped_controller, tmp_path):
+    ctrl = stepped_controller
+    step = capture(ctrl, "stand", "paper-humanoid", 1.002)
+    path = save(tmp_path / "stand_test.npz", [step, step], duration=1.0)
+    back = load(path)
+    assert len(back) == 2
+    b = back[0]
+    assert (b.source, b.robot, b.n, b.nv) == ("stand", "paper-humanoid", ctrl.layout.n,
+                                               ctrl.model.nv)
+    assert len(b.levels) == len(ctrl.last_built.levels)
+    for lv, orig in zip(b.levels, ctrl.last_built.levels):
+        assert lv.name == orig.name
+        for f in ("A", "b", "C", "lower", "upper"):
+            o = getattr(orig, f)
+            if o is None:
+                assert getattr(lv, f) is None
+            else:
+                np.testing.assert_array_equal(getattr(lv, f), np.asarray(o, dtype=float))
+    np.testing.assert_array_equal(b.M, ctrl.model.M)
+    # the replayed levels give the controller's solution (same solver, same numbers)
+    x = solve(list(b.levels), backend="daqp").x
+    np.testing.assert_allclose(x, solve(list(ctrl.last_built.levels), backend="daqp").x,
+                               rtol=0, atol=1e-9)
+
+
+def test_load_rejects_missing_and_foreign_files(tmp_path):
+    with pytest.raises(RecordingError, match="not found"):
+        load(tmp_path / "nope.npz")
+    np.savez(tmp_path / "foreign.npz", a=np.zeros(3))
+    with pytest.raises(RecordingError, match="meta"):
+        load(tmp_path / "foreign.npz")
+
+
+def test_shipped_recordings_are_compact_and_consistent():
+    files = available()
+    assert files, f"no recorded problem files in {DATA_DIR}"
+    total = sum(p.stat().st_size for p in files)
+    assert total < 5e6, f"recorded files take {total / 1e6:.1f} MB"
+    sources = set()
+    for p in files:
+        steps = load(p)
+        assert steps
+        for s in steps:
+            sources.add(s.source)
+            assert s.M.shape == (s.nv, s.nv)
+            assert s.S.shape == (s.nv - 6, s.nv)
+            for lv in s.levels:
+                for m in (lv.A, lv.C):
+                    if m is not None:
+                        assert m.shape[1] == s.n
+    assert {"hand-reach", "stand"} <= sources
+
+
+def test_level_costs_match_a_direct_computation():
+    rng = np.random.default_rng(0)
+    A = rng.normal(size=(3, 4))
+    b = rng.normal(size=3)
+    C = rng.normal(size=(2, 4))
+    lo = np.array([-np.inf, 0.5])
+    up = np.array([0.1, np.inf])
+    x = rng.normal(size=4)
+    cx = C @ x
+    viol = np.array([max(cx[0] - 0.1, 0.0), min(cx[1] - 0.5, 0.0)])
+    expected = [float(np.sum((A @ x - b) ** 2)), float(np.sum(viol**2))]
+    got = level_costs([Level(A=A, b=b), Level(C=C, lower=lo, upper=up)], x)
+    np.testing.assert_allclose(got, expected, rtol=1e-14)
+
+
+def test_tightest_is_the_lexicographic_minimum_and_excess_is_measured_against_it():
+    costs = {"a": np.array([0.0, 2.0, 5.0]), "b": np.array([0.0, 1.0, 9.0]),
+             "c": np.array([1.0, 0.0, 0.0])}
+    np.testing.assert_array_equal(tightest(costs), [0.0, 1.0, 9.0])
+    ex = excess(costs, {k: v for k, v in costs.items() if k != "c"})
+    np.testing.assert_array_equal(ex["a"], [0.0, 1.0, -4.0])
+    np.testing.assert_array_equal(ex["c"], [1.0, -1.0, -9.0])
+    assert relative_excess(ex["a"], tightest(costs)) == pytest.approx(1.0)
+
+
+def test_daqp_hierarchy_peer_on_a_planted_problem():
+    # level 0: x0 = 1; level 1: x0 + x1 = 3; level 2: x1 = 0 (unreachable)
+    levels = [Level(A=[[1.0, 0.0]], b=[1.0]), Level(A=[[1.0, 1.0]], b=[3.0]),
+              Level(A=[[0.0, 1.0]], b=[0.0])]
+    x, flag = DaqpHierarchy().solve(levels)
+    assert flag > 0
+    np.testing.assert_allclose(x, [1.0, 2.0], atol=1e-5)  # DAQP regularises (H = I)
+
+
+def test_law_decision_vector_meets_the_physics_level(stepped_controller):
+    """The law's accelerations with the least-norm wrenches satisfy the top (physics) level."""
+    step = capture(stepped_controller, "stand", "paper-humanoid", 1.002)
+    x = nullspace_law_x(step)
+    assert x.shape == (step.n,)
+    c0 = level_costs(step.levels[:1], x)[0]
+    scale = float(np.abs(step.h).max())
+    assert c0 <= 1e-16 * scale**2, c0
+    # a qdd far from the law's is not consistent with the same wrenches' level
+    assert level_costs(step.levels[:1], law_to_x(step, x[: step.nv] + 1.0))[0] > 1e-6
+
+
+def test_interleaved_runs_every_configuration_in_rotated_rounds():
+    calls: list[str] = []
+    fns = {name: (lambda n=name: calls.append(n)) for name in ("a", "b", "c")}
+    out = interleaved(fns, warmup=1, batch=2, min_samples=6, max_seconds=5.0)
+    assert set(out) == {"a", "b", "c"}
+    assert all(t.samples.size >= 6 and t.cpu.size == t.samples.size for t in out.values())
+    timed = calls[3:]  # after the warm-up
+    firsts = [timed[i] for i in range(0, len(timed), 6)]
+    assert firsts[:3] == ["a", "b", "c"]  # the order rotates between rounds
+
+
+def _check_row_contract(row):
+    for key in ("robot", "solver", "levels", "n", "median_ms", "p95_ms"):
+        assert key in row, key
+    assert row["median_ms"] is None or row["median_ms"] > 0
+
+
+def test_recorded_suite_quick():
+    from hqp.bench import run_suite
+
+    result = run_suite("recorded", quick=True)
+    json.dumps(result)
+    rows = result["rows"]
+    assert result["suite"] == "recorded" and rows
+    by = {r["solver"]: r for r in rows}
+    assert {"basis/proxsuite", "cascade/proxsuite", "daqp-hier", "nullspace"} <= set(by)
+    for r in rows:
+        _check_row_contract(r)
+    basis = by["basis/proxsuite"]
+    assert basis["algorithm"] == "basis" and basis["backend"] == "proxsuite"
+    assert "speedup_vs_cascade" in basis and "over_nullspace" in basis
+    assert len(basis["level_cost_excess"]) == basis["levels"]
+    # the contract's algorithms meet the contract's tolerance against the tightest solution
+    assert basis["cost_excess"] <= 1e-6
+    assert by["cascade/proxsuite"]["cost_excess"] <= 1e-6
+
+
+def test_controller_suite_quick_with_placo():
+    from hqp.bench.suite_controller import run
+
+    rows = run(quick=True, robots=["paper-humanoid"])
+    by = {r["solver"]: r for r in rows}
+    assert set(by) == {"hqp/basis/proxsuite", "nullspace", "placo"}
+    for r in rows:
+        _check_row_contract(r)
+        assert r["threads"] == 1 and "failed" not in r, r.get("failed")
+    hqp = by["hqp/basis/proxsuite"]
+    assert set(hqp["phases_ms"]) >= {"update", "rows", "solve", "report"}
+    assert len(hqp["levels_ms"]) == hqp["levels"]
+    assert hqp["over_placo"] == pytest.approx(hqp["median_ms"] / by["placo"]["median_ms"],
+                                              rel=1e-2)
+    assert hqp["cost_excess"] == 0.0  # the only contract configuration is the tightest
+
+
+def test_plots_are_written(tmp_path):
+    from hqp.bench.plots import write_suite_plots
+
+    rows = [{"suite": "recorded", "robot": "g1", "solver": s, "n": 47, "rows": 145,
+             "levels": 3, "median_ms": m, "p95_ms": 2 * m, "level_cost_excess": [0.0, e, 1e-3]}
+            for s, m, e in (("basis/daqp", 0.5, 0.0), ("daqp-hier", 0.2, 1e-2))]
+    paths = write_suite_plots({"suite": "recorded", "rows": rows}, tmp_path)
+    assert sorted(p.name for p in paths) == ["bench_recorded_accuracy.png",
+                                              "bench_recorded_time.png"]
+    assert all(p.stat().st_size > 1000 for p in paths)
