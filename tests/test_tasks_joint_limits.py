@@ -263,3 +263,24 @@ def test_support_estimate_against_kinetic_and_potential_energy(humanoid: RobotMo
     assert np.all(both <= one + 1e-12)
     with pytest.raises(HQPError, match="unknown frame 'sole'"):
         max_acceleration_from_torques(humanoid, supports=["sole"])
+
+
+def test_acceleration_bounds_are_optional(arm: RobotModel) -> None:
+    A = 0.5
+    q, v = arm.neutral(), np.zeros(arm.nv)
+    arm.update(q, v)  # far from the limits, at rest
+    lb, ub = JointLimits(qdd_max=A).bounds(arm, DT)
+    np.testing.assert_allclose(ub, A)
+    np.testing.assert_allclose(lb, -A)
+    free = JointLimits(qdd_max=A, acceleration_bounds=False)
+    lb, ub = free.bounds(arm, DT)
+    assert np.all(ub > 100 * A) and np.all(lb < -100 * A)
+    # Still viable: near the upper limit at speed, braking at -A is what is left.
+    q[0] = arm.q_upper[0] - 0.3
+    v[0] = np.sqrt(2 * A * 0.3) - 1e-3
+    arm.update(q, v)
+    lb, ub = free.bounds(arm, DT)
+    assert -A - 1e-9 <= ub[0] < -A + 5.0
+    q1 = q[0] + DT * v[0] + 0.5 * DT**2 * ub[0]
+    v1 = v[0] + DT * ub[0]
+    assert v1**2 <= 2 * A * (arm.q_upper[0] - q1) + 1e-9

@@ -18,7 +18,9 @@ each actuated joint gets ``lb <= a <= ub`` with ``ub`` the smallest of
   whose larger root is the bound (at a state that is not viable, where the
   discriminant is negative, the bound is ``-A``: brake);
 * the velocity bound ``(v_max - v) / dt`` (``v+ <= v_max``);
-* the acceleration bound ``A``;
+* the acceleration bound ``A`` (optional: ``acceleration_bounds=False`` leaves
+  the accelerations to the torque limits of a higher level, ``A`` then only
+  being the braking assumption);
 
 and ``lb`` the mirror image. Braking at ``-A`` from a viable state keeps the
 state viable (the braking distance ``v^2 / (2 A)`` is exact for piecewise
@@ -143,7 +145,13 @@ def _support_acceleration(state: RobotModel, supports: Sequence[str]) -> np.ndar
 
 
 def _upper_bounds(
-    q: np.ndarray, v: np.ndarray, q_max: np.ndarray, v_max: np.ndarray, A: np.ndarray, dt: float
+    q: np.ndarray,
+    v: np.ndarray,
+    q_max: np.ndarray,
+    v_max: np.ndarray,
+    A: np.ndarray,
+    dt: float,
+    clip: bool,
 ) -> np.ndarray:
     """Upper acceleration bounds toward ``q_max`` (one-step, viability, velocity, acceleration)."""
     pos = 2.0 * (q_max - q - dt * v) / dt**2
@@ -158,7 +166,7 @@ def _upper_bounds(
         disc = b**2 - 4.0 * dt**2 * c
         root = (-b + np.sqrt(np.maximum(disc, 0.0))) / (2.0 * dt**2)
         via[finite] = np.where(disc >= 0.0, root, -Af)
-    return np.minimum.reduce([pos, vel, via, A])
+    return np.minimum.reduce([pos, vel, via, A] if clip else [pos, vel, via])
 
 
 class JointLimits(Task):
@@ -178,6 +186,10 @@ class JointLimits(Task):
             (``qdd_max=None`` only).
         position_margin: Distance kept from the model's position limits [rad or m] (>= 0).
         velocity_scale: Fraction of the model's velocity limits used, in ``(0, 1]``.
+        acceleration_bounds: Also bound ``|qdd_a| <= A`` (the paper's acceleration
+            bounds). With ``False``, ``A`` only sets the braking assumption of the
+            viability bound and the torque limits alone bound the accelerations
+            (useful when ``A`` is a conservative estimate).
         weight: Weight within its level.
 
     Raises:
@@ -196,6 +208,7 @@ class JointLimits(Task):
         supports: Sequence[str] | None = None,
         position_margin: float = 0.0,
         velocity_scale: float = 1.0,
+        acceleration_bounds: bool = True,
         weight: float = 1.0,
     ) -> None:
         super().__init__(name, weight)
@@ -216,6 +229,7 @@ class JointLimits(Task):
         self.supports = None if supports is None else tuple(supports)
         self.position_margin = float(position_margin)
         self.velocity_scale = float(velocity_scale)
+        self.acceleration_bounds = bool(acceleration_bounds)
         self._violation = np.zeros(0)
 
     def max_acceleration(self, state: RobotModel) -> np.ndarray:
@@ -249,8 +263,9 @@ class JointLimits(Task):
         q_hi = state.q_upper - self.position_margin
         v_max = self.velocity_scale * state.v_max
         A = self.max_acceleration(state)
-        ub = _upper_bounds(q, v, q_hi, v_max, A, dt)
-        lb = -_upper_bounds(-q, -v, -q_lo, v_max, A, dt)
+        clip = self.acceleration_bounds
+        ub = _upper_bounds(q, v, q_hi, v_max, A, dt, clip)
+        lb = -_upper_bounds(-q, -v, -q_lo, v_max, A, dt, clip)
         crossed = lb > ub
         if np.any(crossed):
             brake = np.where(v >= 0.0, -A, A)
