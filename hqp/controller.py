@@ -702,7 +702,8 @@ def standing_stack(
 
     Levels (default categories): physics (floating-base dynamics, both soles as rigid surface
     contacts); contact and actuation limits (friction pyramids, unilateral forces, centre of
-    pressure in the soles, yaw torques, torque limits); viable joint limits; balance (centre of
+    pressure in the soles, yaw torques, torque limits); viable joint limits (braking
+    acceleration: the fixed-base torque estimate clipped to [5, 50] rad/s^2); balance (centre of
     mass over the centre of the feet at its standing height); operational (trunk orientation
     upright as in the standing configuration); posture (the standing configuration).
 
@@ -746,7 +747,11 @@ def standing_stack(
             half_width=sole_margin * surface.half_width, kd=contact_kd, model=model,
         ))
     stack.add(TorqueLimits(scale=torque_scale), Category.CONTACT_LIMITS)
-    qdd_max = max_acceleration_from_torques(model, margin=0.5, supports=list(robot.feet))
+    # Braking acceleration A of the viable joint limits (also a bound on |qdd|): the
+    # fixed-base torque estimate, kept within [5, 50] rad/s^2. The support-aware estimate is
+    # far smaller at the ankles (about 1 rad/s^2 on paper-humanoid: the whole body about the
+    # ankle), and as a hard bound it locks the ankles that balance needs.
+    qdd_max = np.clip(max_acceleration_from_torques(model, margin=0.5), 5.0, 50.0)
     stack.add(JointLimits(qdd_max=qdd_max))
     com = CoMTask(model, kp=com_kp)
     centre = support_center(model, list(robot.feet))

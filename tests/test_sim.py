@@ -131,7 +131,7 @@ def test_conflicting_task_is_reported_and_leaves_the_higher_one_unchanged():
     c = standing_controller(r)
     rival = CoMTask(c.model, horizontal=True, name="rival")
     rival.set_goal(c.task("com").goal_at(0.0).position[:2] + np.array([0.05, -0.03]))
-    c.add_task(rival, Category.OPERATIONAL)
+    c.add_task(rival, Category.OPERATIONAL, ramp_time=0.0)  # no ramp: the full conflict now
     cmd = c.step(state, 0.0)
     st = cmd.report["rival"]
     assert st.status is Feasibility.CONFLICT and st.residual > 1.0
