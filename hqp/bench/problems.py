@@ -27,6 +27,7 @@ class LevelSpec:
         conflicting: Draw targets that the levels above make unreachable: equality
             targets far from the feasible point, and inequality bands that exclude it.
         rank_deficient: Half of the rows are linear combinations of the other half.
+        band: Scale of the inequality half widths (``band >> 1``: few active rows).
 
     """
 
@@ -35,6 +36,8 @@ class LevelSpec:
     two_sided: bool = True
     conflicting: bool = False
     rank_deficient: bool = False
+    band: float = 1.0
+    """Scale of the inequality bands' half widths (large: few rows active)."""
 
 
 def _rows(rng: np.random.Generator, m: int, n: int, deficient: bool) -> np.ndarray:
@@ -86,7 +89,7 @@ def random_level(
         # bands around the reference, some of them excluding it
         centre = cx + rng.uniform(-1.0, 1.0, spec.m_in) + shift * np.sign(
             rng.standard_normal(spec.m_in))
-        half = rng.uniform(0.2, 1.5, spec.m_in)
+        half = spec.band * rng.uniform(0.2, 1.5, spec.m_in)
         upper = centre + half
         lower = centre - half if spec.two_sided else None
     return Level(A=A, b=b, C=C, lower=lower, upper=upper, name=name)

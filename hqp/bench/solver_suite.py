@@ -5,7 +5,10 @@ Random hierarchies (:mod:`hqp.bench.problems`) with ``n`` in {20, 40, 80} and
 level and a rank-deficient one. Each configuration is a short sequence of
 hierarchies with the same matrices and slowly drifting targets and bounds
 (what a control loop sees), solved in turn by one persistent solver. The
-``n = 40``, 4-level configuration is the issue's reference problem.
+``n = 40``, 4-level configurations are the issue's reference problem, in two
+families: ``mixed`` (narrow bands: many rows active or violated, a QP at
+nearly every level) and ``light`` (wide bands: a few active rows, as in a
+controller whose limits are mostly far).
 
 Row fields: ``robot`` (None), ``solver`` (``"<algorithm>/<backend>"`` or
 ``"daqp-hier"``), ``levels``, ``n``, ``rows`` (equality + inequality rows),
@@ -14,7 +17,8 @@ this median on the same backend; basis rows), ``ratio_to_basis_proxsuite``
 (this median / basis-proxsuite median), ``qp_count`` (QPs per solve),
 ``cost_excess`` (largest relative excess of a level's cost over the
 basis-proxsuite solution, ``(cost - ref) / max(1, ref)``), ``exact`` (every
-level within the contract's ``1e-6`` relative tolerance) and, for
+level within the contract's ``1e-6`` relative tolerance), ``family``,
+``active_rows`` (inequality rows active at the solution) and, for
 ``daqp-hier``, ``level_cost_excess`` per level.
 """
 
@@ -37,22 +41,28 @@ LEVEL_COUNTS = (2, 3, 4, 5)
 VARIANTS = 8
 """Hierarchies per configuration (same matrices, drifting targets and bounds)."""
 
+LIGHT_BAND = 8.0
+"""Band scale of the ``light`` family (few active inequality rows)."""
 
-def level_specs(n: int, levels: int) -> list[LevelSpec]:
+
+def level_specs(n: int, levels: int, band: float = 1.0) -> list[LevelSpec]:
     """Return the first ``levels`` level shapes of the suite.
 
     In order: consistent equalities (``n/8``), two-sided limits (``n/2``), a
     conflicting task (``n/4``), a rank-deficient task with one-sided bounds
     (``n/4`` + ``n/4``), a posture task (``n/2``).
 
-    For ``levels = 4`` this is :func:`hqp.bench.problems.reference_specs`.
+    For ``levels = 4`` and ``band = 1`` this is
+    :func:`hqp.bench.problems.reference_specs`; ``band`` scales the inequality
+    half widths (``band = 8``: only a few rows active, as in a controller whose
+    limits are mostly far).
     """
     q = max(1, n // 4)
     kinds = [
         LevelSpec(m_eq=max(1, n // 8)),
-        LevelSpec(m_in=max(1, n // 2), two_sided=True),
+        LevelSpec(m_in=max(1, n // 2), two_sided=True, band=band),
         LevelSpec(m_eq=q, conflicting=True),
-        LevelSpec(m_eq=q, m_in=q, two_sided=False, rank_deficient=True),
+        LevelSpec(m_eq=q, m_in=q, two_sided=False, rank_deficient=True, band=band),
         LevelSpec(m_eq=max(1, n // 2)),
     ]
     return kinds[:levels]
@@ -113,23 +123,27 @@ def solver_suite(quick: bool = False, progress: Callable[[str], None] | None = N
     min_reps = 3 if quick else 15
     backends = available_backends()
     solvers = [f"{a}/{b}" for b in backends for a in ALGORITHMS] + ["daqp-hier"]
-    configs = [(n, L) for n in n_values for L in level_counts]
+    configs = [(n, L, "mixed") for n in n_values for L in level_counts]
+    configs.append((20 if quick else 40, 4, "light"))
     rows: list[dict] = []
     bar = tqdm(total=len(configs) * len(solvers), desc="solver suite", unit="run",
                disable=None, leave=False)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # qpsolvers' OSQP status warnings
-        for n, L in configs:
+        for n, L, family in configs:
             rng = np.random.default_rng(1000 * n + L)
-            base = random_hierarchy(rng, n, level_specs(n, L))
+            base = random_hierarchy(rng, n, level_specs(n, L, LIGHT_BAND if family == "light"
+                                                         else 1.0))
             variants = drifting(base, VARIANTS, rng)
             m = sum((0 if lv.A is None else len(lv.A)) + (0 if lv.C is None else len(lv.C))
                     for lv in base)
             ref = HierarchicalSolver("proxsuite", "basis")
-            ref_costs = _costs(variants[0], ref.solve(variants[0]).x)
+            ref_sol = ref.solve(variants[0])
+            ref_costs = _costs(variants[0], ref_sol.x)
+            n_active = int(sum(lv.active.size for lv in ref_sol.levels))
             group = []
             for name in solvers:
-                bar.set_postfix_str(f"n={n} L={L} {name}")
+                bar.set_postfix_str(f"n={n} L={L} {family} {name}")
                 if name == "daqp-hier":
                     data = [daqp_hierarchy_data(v) for v in variants]
                     x0, _flag = solve_daqp_hierarchy(data[0])
@@ -160,6 +174,8 @@ def solver_suite(quick: bool = False, progress: Callable[[str], None] | None = N
                     "qp_count": qp_count,
                     "cost_excess": float(np.max(excess)),
                     "exact": bool(np.all(np.abs(excess) <= 1e-6)),
+                    "family": family,
+                    "active_rows": n_active,
                     "reference_problem": n == 40 and L == 4,
                 }
                 if name == "daqp-hier":
@@ -167,7 +183,7 @@ def solver_suite(quick: bool = False, progress: Callable[[str], None] | None = N
                 group.append(row)
                 bar.update(1)
                 if progress is not None:
-                    progress(f"n={n} L={L} {name}: {timing.median_ms:.3f} ms")
+                    progress(f"n={n} L={L} {family} {name}: {timing.median_ms:.3f} ms")
             by_name = {r["solver"]: r for r in group}
             base_ms = by_name.get("basis/proxsuite", {}).get("median_ms")
             for r in group:
