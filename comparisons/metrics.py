@@ -16,7 +16,9 @@ The definitions are those of the command-line contract (ARCHITECTURE.md,
   a foot touched the floor.
 
 Per-axis centre-of-gravity errors (``cog_error_x_*``, ``cog_error_y_*``) and
-the number of clipped torque entries (``torque_clipping_count``) are added.
+the number of clipped torque entries (``torque_clipping_count``) and of
+control steps where the controller's solve failed and it sent its safe
+command (``safe_mode_steps``) are added.
 """
 
 from __future__ import annotations
@@ -59,6 +61,10 @@ class Trace:
         torque_clipped: Number of torque entries clipped by the simulator at
             each step ``(N,)``.
         step_ms: Wall-clock time of each control step ``(N,)`` [ms].
+        fell_at: Time of a fall the simulator detected after the last logged
+            sample (the run stops there) [s] (``None``: none).
+        safe_mode: Whether the controller sent its safe command (its solve failed)
+            at each step ``(N,)``.
         extra: Further named series ``(N, ...)`` for plots (e.g. obstacle distance).
 
     """
@@ -77,6 +83,8 @@ class Trace:
     non_foot_floor_contact: np.ndarray | None = None
     torque_clipped: np.ndarray | None = None
     step_ms: np.ndarray | None = None
+    safe_mode: np.ndarray | None = None
+    fell_at: float | None = None
     extra: dict[str, np.ndarray] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
@@ -147,7 +155,7 @@ def fell(trace: Trace) -> bool:
     """Tell whether the pelvis fell below 0.6 x standing height or a non-foot body hit the floor."""
     low = bool(np.any(trace.pelvis_z < FALL_HEIGHT_RATIO * trace.standing_height))
     touched = bool(trace.non_foot_floor_contact is not None and trace.non_foot_floor_contact.any())
-    return low or touched
+    return low or touched or trace.fell_at is not None
 
 
 def run_metrics(trace: Trace) -> dict[str, float | int | bool | None]:
@@ -173,6 +181,9 @@ def run_metrics(trace: Trace) -> dict[str, float | int | bool | None]:
         ),
         "torque_clipping_count": (
             int(trace.torque_clipped.sum()) if trace.torque_clipped is not None else 0
+        ),
+        "safe_mode_steps": (
+            int(np.count_nonzero(trace.safe_mode)) if trace.safe_mode is not None else 0
         ),
         "fell": fell(trace),
     }

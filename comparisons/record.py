@@ -90,5 +90,7 @@ def trace_from_log(
         non_foot_floor_contact=np.asarray(log.other_contact, dtype=bool),
         torque_clipped=np.asarray(log.clipped, dtype=float),
         step_ms=1e3 * np.asarray(log.step_time),
+        safe_mode=np.asarray(log.safe_mode, dtype=bool),
+        fell_at=getattr(log, "fell_at", None),
         extra=dict(extra or {}),
     )

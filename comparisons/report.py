@@ -19,6 +19,7 @@ COLUMNS: tuple[tuple[str, str], ...] = (
     ("hand_final_distance_cm", "hand [cm]"),
     ("joint_limit_violation_max_rad", "limit viol. [rad]"),
     ("torque_clipping_count", "clipped"),
+    ("safe_mode_steps", "safe steps"),
     ("step_time_median_ms", "step [ms]"),
     ("fell", "fell"),
 )

@@ -76,6 +76,7 @@ def test_fall_detection() -> None:
     touch = np.zeros(n, dtype=bool)
     touch[4] = True
     assert run_metrics(_trace(n, non_foot_floor_contact=touch))["fell"] is True
+    assert run_metrics(_trace(n, fell_at=0.05))["fell"] is True
 
 
 def test_trace_rejects_bad_shapes() -> None:
