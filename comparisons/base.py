@@ -127,7 +127,7 @@ class Scenario(abc.ABC):
         if robot is None:
             return self.default_robot
         if robot not in self.robots:
-            raise UnknownName(f"robot for scenario {self.name!r}", robot, self.robots)
+            raise UnknownName("robot", robot, self.robots)
         return robot
 
     def specs(self, controllers: Sequence[str] | None = None) -> list[RunSpec]:

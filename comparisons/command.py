@@ -40,8 +40,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def run(args: argparse.Namespace, out: TextIO = sys.stdout, err: TextIO = sys.stderr) -> int:
+def run(args: argparse.Namespace, out: TextIO | None = None, err: TextIO | None = None) -> int:
     """Execute ``hqp compare`` with parsed arguments.
+
+    With ``--json``, everything written to stdout during the runs (by Python
+    or by C libraries) is sent to stderr, and stdout receives the JSON object
+    alone (:func:`hqp.cli.stdout_to_stderr`).
+
+    Args:
+        args: Parsed arguments (:func:`add_arguments`).
+        out: Stream of the table or JSON (default: stdout).
+        err: Stream of the progress messages (default: stderr).
 
     Returns:
         The exit status (0).
@@ -55,6 +64,16 @@ def run(args: argparse.Namespace, out: TextIO = sys.stdout, err: TextIO = sys.st
         raise InvalidInput(
             f"hqp compare: give one scenario name ({', '.join(SCENARIOS)}) or --all"
         )
+    if args.json and out is None:
+        from hqp.cli import stdout_to_stderr
+
+        with stdout_to_stderr() as original:
+            return _run(args, original, err or sys.stderr)
+    return _run(args, out or sys.stdout, err or sys.stderr)
+
+
+def _run(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
+    """Run the scenarios and print (see :func:`run`)."""
     single_blas_thread()
     names: Sequence[str] = SCENARIOS if args.all else [args.name]
     scenarios = [get_scenario(n) for n in names]  # unknown names fail before any run
