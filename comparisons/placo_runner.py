@@ -149,7 +149,7 @@ class PlacoController:
             tgt[: v_des.size] = np.asarray(x)
             pt.target_world = tgt
         result = self.solver.solve(False)
-        tau_dict = result.tau_dict
+        tau_dict = result.tau_dict(self.robot)
         tau = np.array([tau_dict[n] for n in self.names]) if result.success else np.zeros(len(
             self.names))
         w1 = time.perf_counter()
