@@ -280,15 +280,22 @@ def _violation(C: np.ndarray, lower: np.ndarray | None, upper: np.ndarray | None
 
 
 def _null_basis(M: np.ndarray, rank_tol: float) -> np.ndarray:
-    """Orthonormal basis ``(r, r - rank)`` of the null space of ``M`` ``(m, r)``."""
-    r = M.shape[1]
-    if M.shape[0] == 0 or r == 0:
+    """Orthonormal basis ``(r, r - rank)`` of the null space of ``M`` ``(m, r)``.
+
+    Pivoted QR of ``M^T`` (``M^T P = Q R``): the last ``r - rank`` columns of ``Q`` span the
+    null space, the rank read on ``|diag R|`` against ``rank_tol`` times its largest entry.
+    """
+    import scipy.linalg
+
+    m, r = M.shape
+    if m == 0 or r == 0:
         return np.eye(r)
-    _, s, Vt = np.linalg.svd(M, full_matrices=True)
-    if s.size == 0 or s[0] == 0.0:
+    Q, R, _ = scipy.linalg.qr(M.T, pivoting=True, mode="full", check_finite=False)
+    d = np.abs(np.diag(R))
+    if d.size == 0 or d[0] == 0.0:
         return np.eye(r)
-    rank = int(np.sum(s > rank_tol * s[0]))
-    return Vt[rank:].T
+    rank = int(np.sum(d > rank_tol * d[0]))
+    return Q[:, rank:]
 
 
 class WholeBodyController(Controller):
