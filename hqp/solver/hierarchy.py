@@ -69,6 +69,14 @@ _dgels = lapack.dgels
 _ZERO = np.zeros(0)
 _NO_ROWS = np.zeros(0, dtype=int)
 
+FIX_TOL = 1e-6
+"""A row violated by more than this (times ``max(1, |bound|)``) after a level's
+QP becomes an equality (shrinking the basis). Rows violated by less stay
+carried inequalities with their bound widened to the optimum, which is just as
+exact (a lower level cannot reduce a violation without contradicting the
+level's optimality) but never pins a row that the QP's tolerance made look
+violated."""
+
 CARRY_MARGIN = 1e-9
 """Margin (times ``max(1, |bound|)``) added to the bounds of inequality rows
 carried to lower levels. Rows active at a level's optimum would otherwise pin
@@ -81,8 +89,7 @@ ALGORITHMS = ("basis", "cascade")
 
 FEAS_TOL = 1e-9
 """Feasibility tolerance (times ``max(1, |bound|)``) when checking whether a
-least-squares point satisfies inequalities, and when deciding that a row is
-violated after a QP (and becomes an equality)."""
+least-squares point satisfies inequalities."""
 
 
 
@@ -397,8 +404,8 @@ class HierarchicalSolver:
                 xl = x + (y if Z is None else Z @ y)
                 if mi:
                     cx = C @ xl
-                    viol = (cx > lv.upper + FEAS_TOL * lv.up_scale) | (
-                        cx < lv.lower - FEAS_TOL * lv.lo_scale)
+                    viol = (cx > lv.upper + FIX_TOL * lv.up_scale) | (
+                        cx < lv.lower - FIX_TOL * lv.lo_scale)
                     if viol.any():
                         violated = viol
             # 4. shrink the basis: equality rows and violated rows become equalities
