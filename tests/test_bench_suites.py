@@ -198,3 +198,16 @@ def test_plots_are_written(tmp_path):
     assert sorted(p.name for p in paths) == ["bench_recorded_accuracy.png",
                                               "bench_recorded_time.png"]
     assert all(p.stat().st_size > 1000 for p in paths)
+
+
+def test_profile_breakdown_names_the_phases_of_a_step():
+    from hqp.bench.profile import BREAKDOWN, profile
+
+    text, calls, ms, parts = profile("paper-humanoid", steps=3, backend="daqp", top=5)
+    assert set(parts) == {label for label, _, _ in BREAKDOWN}
+    assert calls > 100 and ms > 0.0 and "function calls" in text
+    # the parts are inside the step (cumulative CPU time of nested calls)
+    assert parts["solve"] <= parts["step"] + 1e-9
+    assert parts["  QP backend calls"] <= parts["solve"] + 1e-9
+    assert parts["model update"] + parts["rows (stack.build)"] + parts["solve"] <= (
+        parts["step"] + 1e-9)

@@ -72,12 +72,12 @@ def phase_table(robot_name: str, steps: int = 200, backend: str = "proxsuite",
 
 def profile(robot_name: str, steps: int = 200, backend: str = "proxsuite",
             algorithm: str = "basis", diagnostics: str = "residuals", top: int = 25
-            ) -> tuple[str, float, float]:
+            ) -> tuple[str, float, float, dict[str, float]]:
     """Profile ``steps`` control steps (cProfile, CPU clock).
 
     Returns:
         ``(the top functions by own time as text, Python function calls per step, CPU ms per
-        step under the profiler)``.
+        step under the profiler, the CPU breakdown of :func:`cpu_breakdown`)``.
 
     """
     from hqp.bench.suite_controller import T0, states
@@ -102,7 +102,38 @@ def profile(robot_name: str, steps: int = 200, backend: str = "proxsuite",
     st = pstats.Stats(pr, stream=out)
     st.sort_stats("tottime").print_stats(top)
     calls = st.total_calls / steps  # type: ignore[attr-defined]
-    return out.getvalue(), calls, 1e3 * st.total_tt / steps  # type: ignore[attr-defined]
+    return out.getvalue(), calls, 1e3 * st.total_tt / steps, cpu_breakdown(st, steps)  # type: ignore[attr-defined]
+
+
+BREAKDOWN = (
+    ("step", "controller.py", "step"),
+    ("model update", "model.py", "update"),
+    ("rows (stack.build)", "stack.py", "build"),
+    ("solve", "hierarchy.py", "solve"),
+    ("  QP backend calls", "hierarchy.py", "_qp"),
+    ("  validation (check_level)", "level.py", "check_level"),
+    ("  level reports", "hierarchy.py", "_report"),
+    ("  sigma_min", "hierarchy.py", "_sigma_level"),
+    ("torques", "controller.py", "torques"),
+    ("feasibility report", "controller.py", "_statuses"),
+)
+"""Rows of the CPU breakdown: (label, file name, function name) of a profiled function."""
+
+
+def cpu_breakdown(stats: pstats.Stats, steps: int) -> dict[str, float]:
+    """Cumulative CPU time per step [ms] of the functions of :data:`BREAKDOWN`.
+
+    Functions of the same name in the same file are summed (e.g. every ``_qp`` call).
+    """
+    raw = stats.stats  # type: ignore[attr-defined]
+    out: dict[str, float] = {}
+    for label, file, func in BREAKDOWN:
+        total = 0.0
+        for (path, _line, name), (_cc, _nc, _tt, ct, _callers) in raw.items():
+            if name == func and path.endswith(file):
+                total += ct
+        out[label] = round(1e3 * total / steps, 4)
+    return out
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -126,10 +157,13 @@ def main(argv: list[str] | None = None) -> int:
                                                for k, v in table["phases_ms"].items()))
     print("solve by level [ms]:  " + "  ".join(f"{k} {v:.3f}"
                                                for k, v in table["levels_ms"].items()))
-    text, calls, ms = profile(args.robot, args.steps, args.backend, args.algorithm,
-                              args.diagnostics, args.top)
+    text, calls, ms, parts = profile(args.robot, args.steps, args.backend, args.algorithm,
+                                     args.diagnostics, args.top)
     print(f"\ncProfile (CPU clock): {calls:.0f} Python function calls per step, "
           f"{ms:.2f} ms CPU per step under the profiler")
+    print("CPU per step [ms] (cumulative, under the profiler):")
+    for label, value in parts.items():
+        print(f"  {label:<28} {value:8.3f}")
     print(text)
     return 0
 
