@@ -470,3 +470,18 @@ def test_other_bad_input_raises():
         solve([Level()])
     with pytest.raises(hqp.InvalidLevel, match="sequence"):
         solve(Level(A=np.eye(2), b=np.zeros(2)))
+
+
+@pytest.mark.parametrize(("n", "levels"), [(40, 5), (80, 5)])
+def test_benchmark_hierarchies_agree(n, levels):
+    # regression: a row that the QP tolerance made look violated must not be pinned
+    from hqp.bench.problems import random_hierarchy
+    from hqp.bench.solver_suite import level_specs
+
+    rng = np.random.default_rng(1000 * n + levels)
+    hierarchy = random_hierarchy(rng, n, level_specs(n, levels))
+    ref = solve(hierarchy, backend="quadprog", algorithm="cascade").costs
+    for backend, algorithm in [("proxsuite", "basis"), ("proxsuite", "cascade"),
+                               ("daqp", "basis")]:
+        costs = solve(hierarchy, backend=backend, algorithm=algorithm).costs
+        assert np.all(np.abs(costs - ref) <= cost_tol(ref)), (backend, algorithm, costs, ref)
