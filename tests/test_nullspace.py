@@ -372,37 +372,37 @@ def test_paper_humanoid_stands_10s_under_the_law(paper_humanoid):
 
 @pytest.mark.slow
 def test_law_without_zones_breaks_a_joint_limit_hqp_does_not(paper_humanoid):
-    """The case the HQP design is about (seed 003 sec. 5): an out-of-reach hand target.
+    """The case the HQP design is about: a task that asks for a joint beyond its limit.
 
-    The plain law (no activation zones) drives joints past their limits (and the robot falls,
-    since it has no contact or torque limits either); HQP keeps every joint inside its viable
-    bounds and stays up, with the hand task reported in conflict.
+    Both elbows are commanded to +0.5 rad, past their upper limit (0: arm stretched), by a
+    task at the operational level of the standing stack. The plain law (no activation
+    zones) drives them past the limit; HQP keeps them inside the viable bounds (the task is
+    reported in conflict); the law with the papers' activation zones holds them at the
+    zone's safety position (seed 003 sec. 5).
     """
     from hqp.nullspace import make_standing_controller
     from hqp.sim.run import simulate
-    from hqp.tasks.position import PositionTask
+    from hqp.tasks.posture import PostureTask
 
     robot = paper_humanoid
-    results = {}
-    # quadprog: the backend of the paper scenarios (comparisons.common.BACKEND)
-    runs = (("nullspace", {"joint_limit_zones": False}), ("hqp", {"backend": "quadprog"}))
-    for kind, extra in runs:
+    runs = {
+        "law": ("nullspace", {"joint_limit_zones": False}),
+        "hqp": ("hqp", {"backend": "quadprog"}),  # the paper scenarios' backend
+        "law+zones": ("nullspace", {}),
+    }
+    out = {}
+    for key, (kind, extra) in runs.items():
         ctrl = make_standing_controller(kind, robot, diagnostics="residuals", **extra)
-        m = ctrl.model
-        m.update(robot.q_standing, np.zeros(m.nv))
-        hand = PositionTask(m, robot.hands[1], name="hand", kp=40.0, max_velocity=0.5)
-        hand.set_goal(m.frame_placement(robot.hands[1]).translation + [0.2, -0.2, -1.0])
-        ctrl.stack.add(hand, "operational")
-        log = simulate(robot, ctrl, 1.0, stop_on_fall=True)
-        results[kind] = (log, joint_limit_violation(log, m))
-    log, viol = results["nullspace"]
-    first = int(np.argmax(viol > 0.05))
-    assert viol[first] > 0.05, "the plain law kept the joints inside their limits"
-    assert log.fell_at is None or log.t[first] < log.fell_at  # past a limit before falling
-    log, viol = results["hqp"]
-    assert not log.fell
-    assert viol.max() < 1e-3  # [rad]
-    assert "conflict" in log.status["hand"][-1]
+        elbows = PostureTask(ctrl.model, ["right_elbow", "left_elbow"], name="elbows", kp=50.0)
+        elbows.set_goal([0.5, 0.5])
+        ctrl.stack.add(elbows, "operational")
+        log = simulate(robot, ctrl, 1.0)
+        assert not log.fell and not log.safe_mode.any() and log.clip_count == 0, key
+        out[key] = (log, joint_limit_violation(log, ctrl.model))
+    assert out["law"][1].max() > 0.1  # [rad] past the elbow limit
+    assert out["hqp"][1].max() < 1e-3
+    assert out["hqp"][0].status["elbows"][-1] == "conflict"
+    assert out["law+zones"][1].max() < 0.0
 
 
 def test_internal_forces_change_contact_wrenches_not_accelerations(paper_humanoid):
