@@ -608,8 +608,9 @@ def law_problem(built: object, stack: object, nv: int) -> _LawProblem:
     * equality rows with a nonzero entry on the contact-force columns are physics rows (the
       unactuated rows of the dynamics, released contact slots at zero) or force tasks; the law
       embeds the dynamics itself and cannot command forces: they are not used;
-    * equality rows on ``qdd`` only, at the PHYSICS level, are the support rows ``J_s qdd = b_s``
-      (the active contacts' motion constraints);
+    * equality rows on ``qdd`` only, at the PHYSICS level (category PHYSICS or a level named
+      ``"physics"``), are the support rows ``J_s qdd = b_s`` (the active contacts' motion
+      constraints);
     * equality rows on ``qdd`` only, at any other level, are that level's task rows;
     * inequality rows are not used (the law has none); the controller reports their violation.
 
@@ -636,7 +637,10 @@ def law_problem(built: object, stack: object, nv: int) -> _LawProblem:
     skipped: list[str] = []
     for k, level in enumerate(built.levels):  # type: ignore[attr-defined]
         index = built.level_index[k]  # type: ignore[attr-defined]
-        physics = stack.level_categories[index] is Category.PHYSICS  # type: ignore[attr-defined]
+        physics = (
+            stack.level_categories[index] is Category.PHYSICS  # type: ignore[attr-defined]
+            or stack.level_names[index] == "physics"  # type: ignore[attr-defined]
+        )
         J_rows: list[np.ndarray] = []
         a_rows: list[np.ndarray] = []
         for span in by_level.get(k, []):
