@@ -147,15 +147,17 @@ def test_conflicting_task_is_reported_and_leaves_the_higher_one_unchanged():
 
 
 def standing_checks(log, slip=1e-3, settle=0.05):
-    summary = log.summary()
+    # The robot starts exactly on the floor: the soft contacts engage during the first
+    # milliseconds (a sole sinks about 1 mm and may shift by under 1 mm while it lands), so
+    # contact, slip, lift and support figures are taken from `settle` on.
+    summary = log.summary(settle)
     assert not log.fell, summary
     assert log.clip_count == 0, summary
     assert summary["safe_mode_steps"] == 0, summary
-    after = log.t >= settle
-    assert log.foot_contact[after].all(), "a foot lifted off"
-    assert np.nanmin(log.support_margin) > 0.0, summary  # CoM inside the support polygon
-    assert log.foot_slip().max() < slip, summary
-    assert log.foot_lift().max() < 1e-3, summary
+    assert summary["feet_always_in_contact"], summary
+    assert summary["min_support_margin_m"] > 0.0, summary  # CoM inside the support polygon
+    assert summary["max_foot_slip_m"] < slip, summary
+    assert summary["max_foot_lift_m"] < 1e-3, summary
     return summary
 
 
@@ -250,5 +252,6 @@ def test_standing_survives_noise_delay_and_a_push():
     c = standing_controller(r, diagnostics="residuals")
     noise = Noise(q_std=2e-4, v_std=5e-3, seed=1)
     log = simulate(r, c, 1.5, [Push(0.5, (60.0, 0.0, 0.0), 0.1)], noise=noise, delay_steps=1)
-    assert not log.fell and log.clip_count == 0 and not log.safe_mode.any(), log.summary()
-    assert np.nanmin(log.support_margin) > 0.0
+    summary = log.summary()
+    assert not log.fell and log.clip_count == 0 and not log.safe_mode.any(), summary
+    assert summary["min_support_margin_m"] > 0.0, summary

@@ -147,14 +147,28 @@ class Log:
         """Total number of clipped torque entries."""
         return int(self.clipped.sum())
 
-    def foot_slip(self) -> np.ndarray:
-        """Largest horizontal displacement of each foot from its start ``(nfeet,)`` [m]."""
-        d = self.foot_position[:, :, :2] - self.foot_position[:1, :, :2]
-        return np.linalg.norm(d, axis=2).max(axis=0)
+    def _from(self, since: float) -> int:
+        """Index of the first logged step at or after ``since`` [s]."""
+        return int(np.searchsorted(self.t, since - 1e-9))
 
-    def foot_lift(self) -> np.ndarray:
-        """Largest rise of each foot above its start ``(nfeet,)`` [m]."""
-        return (self.foot_position[:, :, 2] - self.foot_position[:1, :, 2]).max(axis=0)
+    def foot_slip(self, since: float = 0.0) -> np.ndarray:
+        """Largest horizontal displacement of each foot from its position at ``since`` [s].
+
+        Returns:
+            ``(nfeet,)`` [m].
+
+        """
+        p = self.foot_position[self._from(since):, :, :2]
+        if p.shape[0] == 0:
+            return np.zeros(self.foot_position.shape[1])
+        return np.linalg.norm(p - p[:1], axis=2).max(axis=0)
+
+    def foot_lift(self, since: float = 0.0) -> np.ndarray:
+        """Largest rise of each foot above its height at ``since`` [s] ``(nfeet,)`` [m]."""
+        z = self.foot_position[self._from(since):, :, 2]
+        if z.shape[0] == 0:
+            return np.zeros(self.foot_position.shape[1])
+        return (z - z[:1]).max(axis=0)
 
     def max_torque_jump(self) -> float:
         """Largest change of a commanded torque between consecutive steps [N m]."""
@@ -162,17 +176,27 @@ class Log:
             return 0.0
         return float(np.abs(np.diff(self.tau, axis=0)).max())
 
-    def summary(self) -> dict[str, float | bool | int]:
-        """Scalar figures of the run (for tables and scripts)."""
-        margin = self.support_margin[np.isfinite(self.support_margin)]
+    def summary(self, settle: float = 0.05) -> dict[str, float | bool | int]:
+        """Scalar figures of the run (for tables and scripts).
+
+        Args:
+            settle: Contact and slip figures start at this time [s] (the soft contacts of a
+                robot placed exactly on the floor engage during the first milliseconds).
+
+        """
+        k = self._from(settle)
+        margin = self.support_margin[k:]
+        margin = margin[np.isfinite(margin)]
         return {
             "duration_s": float(self.t[-1] - self.t[0]) if self.t.size else 0.0,
             "fell": self.fell,
             "min_support_margin_m": float(margin.min()) if margin.size else float("nan"),
-            "max_foot_slip_m": float(self.foot_slip().max()),
-            "max_foot_lift_m": float(self.foot_lift().max()),
+            "max_foot_slip_m": float(self.foot_slip(settle).max()),
+            "max_foot_lift_m": float(self.foot_lift(settle).max()),
+            "feet_always_in_contact": bool(self.foot_contact[k:].all()),
             "clip_count": self.clip_count,
             "safe_mode_steps": int(self.safe_mode.sum()),
+            "max_torque_jump_nm": self.max_torque_jump(),
             "step_time_median_ms": float(np.median(self.step_time) * 1e3),
             "step_time_p95_ms": float(np.percentile(self.step_time, 95) * 1e3),
         }
