@@ -250,7 +250,7 @@ def run_robot(robot_name: str, names: Sequence[str], *, quick: bool = False,
 
 
 def run(*, quick: bool = False, robots: Sequence[str] | None = None,
-        backends: Sequence[str] | None = None,
+        backends: Sequence[str] | None = None, algorithms: Sequence[str] = ALGORITHMS,
         progress: Callable[[str], None] | None = None) -> list[dict[str, Any]]:
     """Run the ``controller`` suite.
 
@@ -259,6 +259,7 @@ def run(*, quick: bool = False, robots: Sequence[str] | None = None,
             (for tests; times are not meaningful).
         robots: Robots (default :data:`ROBOTS`).
         backends: Backends (default: every installed one).
+        algorithms: Algorithms of the hqp configurations (default: basis and cascade).
         progress: Status lines (stderr).
 
     """
@@ -266,7 +267,7 @@ def run(*, quick: bool = False, robots: Sequence[str] | None = None,
         names = ["hqp/basis/proxsuite", "nullspace", "placo"]
         robot_list = list(robots) if robots else ["g1"]
     else:
-        names = configurations(backends)
+        names = configurations(backends, algorithms)
         robot_list = list(robots) if robots else list(ROBOTS)
     rows: list[dict[str, Any]] = []
     for r in robot_list:
