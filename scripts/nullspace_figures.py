@@ -31,35 +31,38 @@ import numpy as np  # noqa: E402
 
 
 def survives(kind: str, robot_name: str, force: float, direction: np.ndarray, duration: float,
-             settle: float) -> bool:
+             settle: float, backend: str = "quadprog") -> bool:
     """Whether the standing controller ``kind`` survives a push of ``force`` [N]."""
     from hqp.nullspace import make_standing_controller
     from hqp.robots import load
     from hqp.sim.run import Push, simulate
 
     robot = load(robot_name)
-    ctrl = make_standing_controller(kind, robot, diagnostics="residuals")
+    extra = {"backend": backend} if kind == "hqp" else {}
+    ctrl = make_standing_controller(kind, robot, diagnostics="residuals", **extra)
     f = force * np.array([direction[0], direction[1], 0.0])
     log = simulate(robot, ctrl, 1.0 + duration + settle, [Push(1.0, tuple(f), duration)])
     return not log.fell
 
 
 def largest_push(kind: str, robot_name: str, direction: np.ndarray, duration: float,
-                 settle: float, high: float, resolution: float) -> dict[str, object]:
+                 settle: float, high: float, resolution: float,
+                 backend: str = "quadprog") -> dict[str, object]:
     """Bisection over the push force: the largest force survived within ``resolution`` [N]."""
     lo, hi = 0.0, high
     trials = []
-    while survives(kind, robot_name, hi, direction, duration, settle):
+    while survives(kind, robot_name, hi, direction, duration, settle, backend):
         trials.append((hi, True))
         lo, hi = hi, 2.0 * hi
     trials.append((hi, False))
     while hi - lo > resolution:
         mid = 0.5 * (lo + hi)
-        ok = survives(kind, robot_name, mid, direction, duration, settle)
+        ok = survives(kind, robot_name, mid, direction, duration, settle, backend)
         trials.append((mid, ok))
         lo, hi = (mid, hi) if ok else (lo, mid)
         print(f"{kind}: {mid:.1f} N {'survived' if ok else 'fell'}", file=sys.stderr)
-    return {"controller": kind, "robot": robot_name, "direction": direction.tolist(),
+    name = kind if kind != "hqp" else f"hqp/basis/{backend}"
+    return {"controller": name, "robot": robot_name, "direction": direction.tolist(),
             "push_duration_s": duration, "largest_survived_N": lo, "first_fall_N": hi,
             "impulse_Ns": lo * duration, "trials": trials}
 
@@ -114,6 +117,7 @@ def main() -> None:
     p.add_argument("--settle", type=float, default=2.0, help="time after the push [s]")
     p.add_argument("--start", type=float, default=100.0, help="first force tried [N]")
     p.add_argument("--resolution", type=float, default=10.0, help="bisection stop [N]")
+    p.add_argument("--backend", default="quadprog", help="QP backend of the HQP controller")
     t = sub.add_parser("timing", help="step time of the law beside HQP's")
     t.add_argument("--robots", nargs="+", default=["paper-humanoid", "g1", "talos"])
     t.add_argument("--steps", type=int, default=200)
@@ -124,7 +128,7 @@ def main() -> None:
         d = np.array(args.direction, dtype=float)
         d /= np.linalg.norm(d)
         out = largest_push(args.controller, args.robot, d, args.duration, args.settle,
-                           args.start, args.resolution)
+                           args.start, args.resolution, args.backend)
     else:
         out = timing(args.robots, args.steps, args.backend)
     print(json.dumps(out))
