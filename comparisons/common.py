@@ -31,6 +31,17 @@ from hqp.tasks.base import Category, Task
 DT = 1e-3
 """Control and simulation period [s]."""
 
+JOINT_LIMIT_MARGIN = 0.25
+"""Fraction of the single-joint deceleration estimate
+(:func:`hqp.tasks.joint_limits.max_acceleration_from_torques`) used as the
+constant braking acceleration ``A`` of the viable joint-limit bounds. With
+0.5 (the standing controllers' value) the hand-reach squat needed more
+torque than the limits allow to brake several joints at once under the
+body's weight: the torque-limit level (above) won and the knees and hips
+went past their limits in MuJoCo."""
+JOINT_VELOCITY_SCALE = 0.5
+"""Fraction of the model's joint velocity limits used by the viable bounds."""
+
 BACKEND = "quadprog"
 """QP backend of the HQP controller in the scenarios (daqp and proxsuite fell back to the
 safe command on the hand-reach stack when this was written)."""
@@ -80,8 +91,10 @@ def build_stack(robot: Robot, model: RobotModel, hierarchy: Hierarchy) -> Stack:
     stack.add(FloatingBaseDynamics(), Category.PHYSICS)
     stack.add(TorqueLimits(), Category.CONTACT_LIMITS)
     model.update(robot.q_standing, np.zeros(model.nv))
-    qdd_max = max_acceleration_from_torques(model, margin=0.5, supports=list(robot.feet))
-    stack.add(JointLimits(qdd_max=qdd_max), Category.JOINT_LIMITS)
+    qdd_max = max_acceleration_from_torques(model, margin=JOINT_LIMIT_MARGIN,
+                                            supports=list(robot.feet))
+    stack.add(JointLimits(qdd_max=qdd_max, velocity_scale=JOINT_VELOCITY_SCALE),
+              Category.JOINT_LIMITS)
     for task in hierarchy.collision:
         stack.add(task, Category.COLLISION)
     for name, tasks in hierarchy.levels:

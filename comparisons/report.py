@@ -47,7 +47,11 @@ def _fmt(value: Any) -> str:
 
 def format_table(result: ScenarioResult) -> str:
     """Return a plain-text table: one row per controller and hierarchy, one column per metric."""
-    rows = [r.row() for r in result.runs]
+    return format_rows(result.scenario, result.robot, [r.row() for r in result.runs])
+
+
+def format_rows(scenario: str, robot: str, rows: list[dict[str, Any]]) -> str:
+    """Format the contract's ``runs`` rows of one scenario as :func:`format_table` does."""
     keys = [k for k, _ in COLUMNS]
     headers = [h for _, h in COLUMNS]
     for row in rows:
@@ -59,7 +63,7 @@ def format_table(result: ScenarioResult) -> str:
     for row in rows:
         table.append([row["controller"], row["hierarchy"], *(_fmt(row.get(k)) for k in keys)])
     widths = [max(len(r[i]) for r in table) for i in range(len(table[0]))]
-    lines = [f"{result.scenario} on {result.robot}"]
+    lines = [f"{scenario} on {robot}"]
     for k, r in enumerate(table):
         lines.append("  ".join(c.rjust(w) if i > 1 else c.ljust(w) for i, (c, w) in
                                enumerate(zip(r, widths))))

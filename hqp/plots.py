@@ -97,8 +97,14 @@ def plot_panels(panels: list[Panel], path: str | Path, title: str = "") -> Path:
             ax.set_visible(False)
             continue
         panel = panels[k]
+        colors: dict[str, str] = {}
         for line in panel.lines:
-            ax.plot(panel.t, line.y, _STYLES.get(line.style, "-"), label=line.label, lw=1.6)
+            style = _STYLES.get(line.style, "-")
+            if line.label in colors:  # a second curve of the same label: same colour, no entry
+                ax.plot(panel.t, line.y, style, color=colors[line.label], lw=1.6)
+                continue
+            (curve,) = ax.plot(panel.t, line.y, style, label=line.label, lw=1.6)
+            colors[line.label] = curve.get_color()
         for te in panel.events:
             ax.axvline(te, color="0.6", lw=0.8)
         ax.set_title(panel.title)
