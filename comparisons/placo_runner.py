@@ -149,13 +149,17 @@ class PlacoController:
             tgt[: v_des.size] = np.asarray(x)
             pt.target_world = tgt
         result = self.solver.solve(False)
-        tau_dict = result.tau_dict(self.robot)
-        tau = np.array([tau_dict[n] for n in self.names]) if result.success else np.zeros(len(
-            self.names))
+        if result.success:  # (tau_dict of a failed solve crashes placo 0.10.2)
+            tau_dict = result.tau_dict(self.robot)
+            tau = np.array([tau_dict[n] for n in self.names])
+            qdd = np.array(result.qdd)
+        else:
+            tau = np.zeros(len(self.names))
+            qdd = np.zeros(self.model.nv)
         w1 = time.perf_counter()
         return Command(
             tau=tau,
-            qdd=np.array(result.qdd),
+            qdd=qdd,
             wrenches={},
             report=FeasibilityReport(notes=() if result.success else ("placo: solve failed",)),
             safe_mode=not result.success,
