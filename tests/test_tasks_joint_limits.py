@@ -274,7 +274,11 @@ def test_acceleration_bounds_are_optional(arm: RobotModel) -> None:
     np.testing.assert_allclose(lb, -A)
     free = JointLimits(qdd_max=A, acceleration_bounds=False)
     lb, ub = free.bounds(arm, DT)
-    assert np.all(ub > 100 * A) and np.all(lb < -100 * A)
+    np.testing.assert_allclose(ub, V_MAX / DT)  # the velocity bounds are what is left
+    np.testing.assert_allclose(lb, -V_MAX / DT)
+    capped = JointLimits(qdd_max=A, acceleration_bounds=False, inactive_beyond=500.0)
+    lb, ub = capped.bounds(arm, DT)
+    assert np.all(np.isinf(ub)) and np.all(np.isinf(lb))  # bounds far from binding: inactive
     # Still viable: near the upper limit at speed, braking at -A is what is left.
     q[0] = arm.q_upper[0] - 0.3
     v[0] = np.sqrt(2 * A * 0.3) - 1e-3

@@ -190,6 +190,9 @@ class JointLimits(Task):
             bounds). With ``False``, ``A`` only sets the braking assumption of the
             viability bound and the torque limits alone bound the accelerations
             (useful when ``A`` is a conservative estimate).
+        inactive_beyond: Bounds larger in magnitude than this [rad/s^2] are
+            returned as ``±inf`` (far from binding; keeps the QP data well
+            scaled: the one-step position bound is of order ``1 / dt^2``).
         weight: Weight within its level.
 
     Raises:
@@ -209,6 +212,7 @@ class JointLimits(Task):
         position_margin: float = 0.0,
         velocity_scale: float = 1.0,
         acceleration_bounds: bool = True,
+        inactive_beyond: float = 1e4,
         weight: float = 1.0,
     ) -> None:
         super().__init__(name, weight)
@@ -230,6 +234,9 @@ class JointLimits(Task):
         self.position_margin = float(position_margin)
         self.velocity_scale = float(velocity_scale)
         self.acceleration_bounds = bool(acceleration_bounds)
+        if np.isnan(inactive_beyond) or inactive_beyond <= 0.0:
+            raise InvalidGain(f"{w}: inactive_beyond must be > 0, got {inactive_beyond}")
+        self.inactive_beyond = float(inactive_beyond)
         self._violation = np.zeros(0)
 
     def max_acceleration(self, state: RobotModel) -> np.ndarray:
@@ -272,6 +279,8 @@ class JointLimits(Task):
             brake = np.where(np.isfinite(brake), brake, np.where(v >= 0.0, ub, lb))
             lb = np.where(crossed, brake, lb)
             ub = np.where(crossed, brake, ub)
+        ub = np.where(ub > self.inactive_beyond, np.inf, ub)
+        lb = np.where(lb < -self.inactive_beyond, -np.inf, lb)
         self._violation = np.maximum(q - state.q_upper, 0.0) + np.maximum(state.q_lower - q, 0.0)
         return lb, ub
 
