@@ -167,10 +167,10 @@ def test_damper_keeps_distance_in_closed_loop() -> None:
     task = ObstacleAvoidance("obs", world, [forearm], d_safe=0.05, d_influence=0.3, xi=0.5,
                              kv=50.0)
     layout = Layout.build(arm.nv)
-    dt = 2e-3
+    dt = 4e-3
     start = task.distances(arm)[0].d
     lowest, active = np.inf, 0
-    for _ in range(1000):
+    for _ in range(500):
         arm.update(q, v)
         J = arm.frame_jacobian("effector_body")[:3]
         err = world.get("ball").position - arm.frame_placement("effector_body").translation
@@ -186,7 +186,7 @@ def test_damper_keeps_distance_in_closed_loop() -> None:
         v = v + dt * qdd
         lowest = min(lowest, task.error()[0])
     assert start > 0.3
-    assert active > 500  # the row was binding
+    assert active > 250  # the row was binding
     assert lowest >= 0.0  # never closer than d_safe
     assert lowest < 0.01  # and it approached it
 

@@ -165,7 +165,7 @@ def test_surface_rows_are_the_full_contact_wrench_cone() -> None:
     A_ub = np.kron(np.eye(4), P)
     rng = np.random.default_rng(8)
     inside = 0
-    for _ in range(300):
+    for _ in range(150):
         w = rng.normal(size=6) * np.array([0.3, 0.3, 0.0, 0.04, 0.06, 0.03])
         w[2] = 1.0
         res = linprog(np.zeros(12), A_ub=A_ub, b_ub=np.zeros(20), A_eq=W, b_eq=w,
@@ -173,7 +173,7 @@ def test_surface_rows_are_the_full_contact_wrench_cone() -> None:
         in_rows = bool(np.all(G @ w <= 1e-9))
         inside += in_rows
         assert in_rows == (res.status == 0)
-    assert 50 < inside < 250  # both outcomes sampled
+    assert 25 < inside < 125  # both outcomes sampled
 
 
 def test_normal_force_bounds(robot: RobotModel) -> None:
