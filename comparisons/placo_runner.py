@@ -8,6 +8,7 @@ scenario's tasks onto PlaCo tasks:
 
 - centre of gravity (horizontal) -> ``DynamicsCoMTask`` with an ``xy`` mask;
 - frame position -> ``DynamicsPositionTask``;
+- frame orientation -> ``DynamicsOrientationTask`` (PD without saturation);
 - symmetry posture -> ``DynamicsJointsTask`` towards ``q_mid``.
 
 PlaCo has two priorities, ``hard`` (equality constraints) and ``soft``
@@ -65,6 +66,7 @@ class PlacoController:
 
         from hqp.errors import InvalidInput
         from hqp.tasks.com import CoMTask
+        from hqp.tasks.orientation import OrientationTask
         from hqp.tasks.position import PositionTask
         from hqp.tasks.posture import PostureTask
 
@@ -106,6 +108,12 @@ class PlacoController:
                 elif isinstance(task, PositionTask):
                     pt = self.solver.add_position_task(task.frame, task.goal_at(0.0).position)
                     kind = "position"
+                elif isinstance(task, OrientationTask):
+                    pt = self.solver.add_orientation_task(task.frame, task.goal_at(0.0).position)
+                    pt.kp, pt.kd = ref.kp, ref.kv
+                    pt.configure(task.name, "hard" if hard else "soft", task.weight)
+                    self._tracked.append((task, pt, "orientation"))
+                    continue
                 elif isinstance(task, PostureTask):
                     pt = self.solver.add_joints_task()
                     goal = task.goal_at(0.0).position
@@ -136,6 +144,10 @@ class PlacoController:
         self.model.update(state.q, state.v)
         for task, pt, kind in self._tracked:
             sample = task.goal_at(t)
+            if kind == "orientation":  # plain PD towards the (moving) goal, no saturation
+                pt.R_world_frame = sample.position
+                pt.omega_world = sample.velocity
+                continue
             if kind == "com":
                 x = self.model.com[: task.goal_size]
             else:
