@@ -63,14 +63,18 @@ def run_command(args: argparse.Namespace) -> int:
             print(f"\r{args.behavior}: t = {t:5.1f} / {total:.1f} s", end="", file=sys.stderr,
                   flush=True)
 
-    result = run_behavior(args.behavior, robot=args.robot, controller=args.controller,
-                          duration=args.duration, inputs=args.inputs, overrides=overrides,
-                          video=args.video, progress=progress)
-    print(file=sys.stderr)
-    data = result.as_json()
-    if args.json:
-        print(json.dumps(data))
-    else:
+    from hqp.cli import stdout_to_stderr
+
+    # C libraries (PlaCo) print to stdout: keep stdout for the one JSON object
+    with stdout_to_stderr() as out:
+        result = run_behavior(args.behavior, robot=args.robot, controller=args.controller,
+                              duration=args.duration, inputs=args.inputs, overrides=overrides,
+                              video=args.video, progress=progress)
+        print(file=sys.stderr)
+        data = result.as_json()
+        if args.json:
+            out.write(json.dumps(data) + "\n")
+    if not args.json:
         outcome = f"FELL ({data['fall_reason']})" if data["fell"] else "did not fall"
         print(f"behavior {data['behavior']} on {data['robot']} ({data['controller']}), "
               f"{data['duration_s']:.2f} s: {outcome}")

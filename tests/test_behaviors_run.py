@@ -1,0 +1,129 @@
+"""Behaviors in closed loop with MuJoCo on paper-humanoid (slow).
+
+Thresholds have margins; the measured figures are printed by ``hqp run NAME --json``.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from hqp.behaviors.runner import run_behavior
+
+pytestmark = pytest.mark.slow
+
+
+def check_upright(result, *, flight_allowed: bool = False) -> None:
+    assert not result.fell, result.fall_reason
+    assert result.metrics["sim_clipped_torques"] == 0
+    assert result.metrics["max_torque_ratio"] <= 1.0 + 1e-9
+    assert result.metrics["safe_mode_steps"] == 0
+    if not flight_allowed:
+        assert result.metrics["flight_time_s"] == 0.0
+
+
+def test_reach_follows_the_streamed_goal_without_falling() -> None:
+    result = run_behavior("reach", duration=2.5)
+    check_upright(result)
+    assert result.phases == ["stand", "reach"]
+    hand = result.metrics["task_errors"]["reach"]["hand"]
+    assert hand["final"] < 0.03  # [m] from the goal streamed at t = 2 s
+
+
+FILE_ONLY = """\
+# A behavior written only as a file: raise the left hand, then hold it, head level.
+[behavior]
+name = "wave-left"
+initial = "settle"
+duration = 1.5
+
+[inputs.hand]
+default = [0.25, 0.30, 1.05]
+
+[tasks.balance]
+type = "com"
+goal = "[feet_center.x, feet_center.y, com0.z]"
+
+[tasks.left_hand]
+type = "position"
+frame = "left_hand"
+goal = "input.hand"
+kp = 80.0
+max_velocity = 0.4
+
+[tasks.head]
+type = "orientation"
+frame = "head"
+goal = [0.0, 0.0, 0.0]
+
+[tasks.posture]
+type = "posture"
+goal = "standing"
+kp = 40.0
+
+[phases.settle]
+tasks = ["balance", "head", "posture"]
+contacts = ["left_foot", "right_foot"]
+transitions = [{ to = "raise", when = "t >= 0.2" }]
+
+[phases.raise]
+tasks = ["balance", "left_hand", "head", "posture"]
+contacts = ["left_foot", "right_foot"]
+transitions = [{ to = "hold", when = "error.left_hand < 0.05" }]
+
+[phases.hold]
+tasks = ["balance", "left_hand", "head", "posture"]
+contacts = ["left_foot", "right_foot"]
+final = true
+"""
+
+
+def test_a_behavior_written_only_as_a_file_runs(tmp_path: Path) -> None:
+    path = tmp_path / "wave-left.toml"
+    path.write_text(FILE_ONLY)
+    result = run_behavior(path)
+    check_upright(result)
+    assert result.phases == ["settle", "raise", "hold"]
+    assert result.metrics["task_errors"]["hold"]["left_hand"]["final"] < 0.05
+
+
+@pytest.mark.parametrize("name", ["stand", "mimic", "screwgun"])
+def test_library_behavior_runs_without_falling(name: str) -> None:
+    duration = {"stand": 1.0, "mimic": 2.5, "screwgun": 3.5}[name]
+    result = run_behavior(name, duration=duration)
+    check_upright(result)
+    if name == "mimic":
+        assert result.phases[:3] == ["stand", "arms_forward", "wave"]
+    if name == "screwgun":
+        # the tool point rises above 1.20 m at t = 3 s (screwgun_inputs.jsonl): posture switch
+        assert result.phases[:2] == ["low", "high"]
+
+
+def test_squat_jump_flies_and_lands_standing() -> None:
+    result = run_behavior("squat-jump")
+    check_upright(result, flight_allowed=True)
+    assert result.phases[:5] == ["stand", "down", "up", "flight", "prepare_landing"]
+    assert result.phases[-2:] == ["land", "recover"]
+    assert "safe_flight" not in result.phases
+    assert result.metrics["flight_time_s"] >= 0.1  # both feet out of contact [s]
+
+
+def test_squat_jump_knee_limit_enters_the_safety_phase_and_lands_standing() -> None:
+    # a take-off height above what straight legs reach: the knees hit their limit first
+    result = run_behavior("squat-jump", overrides={"takeoff_height": 1.2})
+    check_upright(result, flight_allowed=True)
+    assert "flight" not in result.phases
+    assert result.phases[:4] == ["stand", "down", "up", "safe_flight"]
+    assert result.phases[-2:] == ["land", "recover"]
+    safety = [e for e in result.feasibility_events if e["status"] == "safety"]
+    assert safety and safety[0]["task"] == "hip" and safety[0]["phase"] == "up"
+
+
+def test_walk_makes_eight_footsteps_forward() -> None:
+    result = run_behavior("walk")
+    check_upright(result)
+    assert result.as_json()["steps"] >= 8
+    for step in result.steps:
+        assert step["air_time_s"] >= 0.1 and step["advance_m"] >= 0.10
+    assert result.metrics["mean_speed_m_s"] > 0.05
