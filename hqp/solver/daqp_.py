@@ -1,47 +1,96 @@
-"""DAQP backend through qpsolvers (dual active set, exact on its active set)."""
+"""DAQP backend (dual active set, exact on its active set), called natively."""
 
 from __future__ import annotations
 
-import numpy as np
-import qpsolvers
+from ctypes import c_int
 
-from hqp.solver.backend import QPBackend, one_sided
+import daqp
+import numpy as np
+
+from hqp.solver.backend import QPBackend
 
 SETTINGS = {
     "primal_tol": 1e-10,
     "dual_tol": 1e-12,
-    "eps_prox": 1e-6,
-    "iter_limit": 10000,
+    "iter_limit": 2000,
     "eta_prox": 1e-12,
 }
 """DAQP settings: tight primal tolerance, a forced proximal outer loop
-(``eps_prox > 0``) run to a tight stop (``eta_prox``): DAQP needs a positive
-definite Hessian, and the least-squares Hessians of a hierarchy are only
-semidefinite. Proximal-point iterations
+(``eps_prox > 0``, see :data:`EPS_PROX_SEQUENCE`) run to a tight stop
+(``eta_prox``): DAQP needs a positive definite Hessian, and the least-squares
+Hessians of a hierarchy are only semidefinite. Proximal-point iterations
 ``min f(v) + eps/2 ||v - v_prev||^2`` converge to an exact minimiser of ``f``
 (no bias, unlike a fixed regularisation)."""
 
 
-EPS_PROX_SEQUENCE = (1e-6, 1e-4, 1e-2, -1.0)
-"""Proximal weights tried in turn: a small forced one (accurate on semidefinite
-least squares), then larger ones (degenerate vertices), then DAQP's automatic choice."""
+EPS_PROX_SEQUENCE = (1e-6, 1e-4, 1e-2, 1.0, -1.0)
+"""Proximal weights tried in turn (the hierarchy normalises ``H`` to a largest
+entry near 1): a small forced one (accurate on semidefinite least squares),
+then larger ones, then DAQP's automatic choice. Small weights leave the
+proximal subproblems nearly singular where ``H`` is (the reduced Hessian of an
+equality-only level that leaves force directions free), and on real
+whole-body stacks (friction-cone, torque and joint-limit rows nearly dependent
+after projection, large gradients) DAQP's dual iterations then report
+infeasibility within a few dozen iterations; a weight of 1 keeps every
+subproblem well conditioned, and the proximal-point iterations still converge
+to an exact minimiser, only in more (cheap) outer iterations."""
+
+ATTEMPTS = tuple((SETTINGS["primal_tol"], e) for e in EPS_PROX_SEQUENCE) + tuple(
+    (1e-8, e) for e in EPS_PROX_SEQUENCE)
+"""``(primal_tol, eps_prox)`` tried in turn: the tight primal tolerance first,
+then ``1e-8``. Carried rows of a hierarchy can leave feasible sets only about
+``1e-9`` thick (implicit equalities, :data:`hqp.solver.hierarchy.CARRY_MARGIN`),
+where DAQP's dual steps with a ``1e-10`` primal tolerance cycle into false
+infeasibility; a failed attempt costs a few dozen iterations. The hierarchy
+widens its carried bounds to contain the returned point, so a ``1e-8``
+violation only moves a bound by that much."""
+
+_DAQP_INF = 1e30
+"""DAQP's infinite bound."""
+
+_EQUALITY = 5
+"""DAQP constraint sense of an equality row (active and immutable)."""
 
 
 class DaqpBackend(QPBackend):
-    """DAQP through ``qpsolvers.solve_problem`` with its proximal outer loop."""
+    """DAQP through its own ``daqp.solve`` with two-sided rows and its proximal outer loop.
+
+    Two-sided rows ``lo <= C v <= up`` go to DAQP as they are (qpsolvers' one-sided
+    form doubles them into pairs of opposite rows, which DAQP's dual steps treat
+    as nearly dependent constraints); equality rows get DAQP's equality sense.
+    """
 
     name = "daqp"
     needs_pd = True
 
     def solve(self, slot, H, g, E, e, C, lo, up):  # noqa: D102 - documented in the base
-        G, h = one_sided(C, lo, up)
-        has_eq = E is not None and E.shape[0] > 0
-        problem = qpsolvers.Problem(H, g, G, h, E if has_eq else None, e if has_eq else None)
-        sol = None
-        for eps_prox in EPS_PROX_SEQUENCE:
-            sol = qpsolvers.solve_problem(
-                problem, solver="daqp", **{**SETTINGS, "eps_prox": eps_prox})
-            if sol.found and sol.x is not None:
-                return np.asarray(sol.x, dtype=float), True
-        return np.full(H.shape[0], np.nan), False
-
+        nv = H.shape[0]
+        rows, upper, lower, sense = [], [], [], []
+        if E is not None and E.shape[0]:
+            rows.append(E)
+            upper.append(e)
+            lower.append(e)
+            sense.append(np.full(E.shape[0], _EQUALITY, dtype=c_int))
+        if C is not None and C.shape[0]:
+            rows.append(C)
+            upper.append(np.minimum(up, _DAQP_INF))
+            lower.append(np.maximum(lo, -_DAQP_INF))
+            sense.append(np.zeros(C.shape[0], dtype=c_int))
+        if rows:
+            A = np.ascontiguousarray(np.concatenate(rows))
+            bu = np.ascontiguousarray(np.concatenate(upper), dtype=float)
+            bl = np.ascontiguousarray(np.concatenate(lower), dtype=float)
+            sn = np.ascontiguousarray(np.concatenate(sense), dtype=c_int)
+        else:
+            A = np.zeros((0, nv))
+            bu = bl = np.zeros(0)
+            sn = np.zeros(0, dtype=c_int)
+        Hc = np.ascontiguousarray(H, dtype=float)
+        gc = np.ascontiguousarray(g, dtype=float)
+        for primal_tol, eps_prox in ATTEMPTS:
+            x, _fval, exitflag, _info = daqp.solve(
+                Hc, gc, A, bu, bl, sn, **{**SETTINGS, "primal_tol": primal_tol},
+                eps_prox=eps_prox)
+            if exitflag >= 1 and np.isfinite(x).all():
+                return np.asarray(x, dtype=float).copy(), True
+        return np.full(nv, np.nan), False

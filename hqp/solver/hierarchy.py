@@ -79,10 +79,16 @@ violated."""
 
 CARRY_MARGIN = 1e-9
 """Margin (times ``max(1, |bound|)``) added to the bounds of inequality rows
-carried to lower levels. Rows active at a level's optimum would otherwise pin
-the lower levels' QPs on degenerate vertices, where active-set backends report
-inconsistent constraints and ProxQP converges slowly; a lower level can move
-such a row by at most this margin."""
+carried to lower levels, and kept when a carried bound is widened to contain
+a later optimum. Rows active at a level's optimum, and above all rows left
+slightly violated (below :data:`FIX_TOL`), whose violation is unique over the
+optimal set, are implicit equalities: with a zero-width (or 1e-9-wide) slab
+the lower levels' feasible sets are flat in those directions, ProxQP then
+stalls for its whole iteration budget and DAQP reports them infeasible (real
+whole-body stacks: friction-cone, torque and joint-limit rows). A lower level
+can move such a row by at most this margin, i.e. raise the level's cost by at
+most ``2 v m + m^2`` per row with ``v < FIX_TOL`` its violation, far inside the
+contract's ``1e-6`` tolerance."""
 
 ALGORITHMS = ("basis", "cascade")
 """Names of the lexicographic algorithms."""
@@ -196,6 +202,22 @@ def _within(
 ) -> bool:
     """Whether ``lo - tol <= cx <= up + tol`` with ``tol = FEAS_TOL * scale``."""
     return bool((cx >= lo - FEAS_TOL * lo_s).all() and (cx <= up + FEAS_TOL * up_s).all())
+
+
+def _widen(
+    gl: np.ndarray, gu: np.ndarray, gx: np.ndarray, gls: np.ndarray, gus: np.ndarray
+) -> None:
+    """Widen carried bounds in place to contain ``gx``, keeping :data:`CARRY_MARGIN`.
+
+    A bound that ``gx`` crosses (by the QP's tolerance) moves to ``gx`` plus the
+    margin, so no carried row is left with a zero-width side.
+    """
+    below = gx < gl
+    if below.any():
+        gl[below] = gx[below] - CARRY_MARGIN * gls[below]
+    above = gx > gu
+    if above.any():
+        gu[above] = gx[above] + CARRY_MARGIN * gus[above]
 
 
 def _mth_singular(s: np.ndarray, m: int, r: int, thr: float) -> float:
@@ -421,9 +443,7 @@ class HierarchicalSolver:
                 r = Z.shape[1]
             # carried rows: widen to contain x (absorbs the QP tolerance); add this level's
             if carried and not feasible:
-                gx = G @ x
-                np.minimum(gl, gx, out=gl)
-                np.maximum(gu, gx, out=gu)
+                _widen(gl, gu, G @ x, gls, gus)
             if mi:
                 keep = lv.bounded if violated is None else lv.bounded & ~violated
                 if keep.any():
@@ -557,11 +577,20 @@ RETRY_MARGIN = 1e-9
 when a backend fails on it (degenerate vertices); the retry's effect on the
 costs stays well inside the contract's tolerance."""
 
+RETRY_MARGINS = (RETRY_MARGIN, 1e-7)
+"""Relaxations tried in turn when a backend fails on a level QP. Real
+whole-body stacks leave feasible sets only ``CARRY_MARGIN`` thick in some
+directions (implicit equalities of active friction-cone, torque and
+joint-limit rows); a ``1e-7`` relaxation gives the backends a usable interior
+there, at a cost change far below the contract's tolerance on such levels.
+The larger relaxations are tried only while no finite point came back (an
+unconverged finite iterate is kept, as before)."""
+
 
 def _qp(backend: QPBackend, slot: Any, H: np.ndarray, g: np.ndarray,
         E: np.ndarray | None, e: np.ndarray | None, C: np.ndarray | None,
         lo: np.ndarray | None, up: np.ndarray | None) -> tuple[np.ndarray, bool]:
-    """Call the backend; on failure retry once with bounds relaxed by :data:`RETRY_MARGIN`.
+    """Call the backend; on failure retry with bounds relaxed by :data:`RETRY_MARGINS`.
 
     The cost is normalised first (``H / s``, ``g / s`` with ``s`` the largest entry
     of ``H``): the minimiser does not change, and the backends' absolute
@@ -574,13 +603,19 @@ def _qp(backend: QPBackend, slot: Any, H: np.ndarray, g: np.ndarray,
     v, ok = backend.solve(slot, H, g, E, e, C, lo, up)
     if ok or C is None or lo is None or up is None:
         return v, ok
-    logger.debug("backend %s failed on QP %s; retrying with relaxed bounds", backend.name, slot)
-    margin_lo = RETRY_MARGIN * np.maximum(1.0, np.abs(np.where(np.isfinite(lo), lo, 0.0)))
-    margin_up = RETRY_MARGIN * np.maximum(1.0, np.abs(np.where(np.isfinite(up), up, 0.0)))
-    v2, ok2 = backend.solve(slot, H, g, E, e, C, lo - margin_lo, up + margin_up)
-    if ok2 or not np.isfinite(v).all():
-        return v2, ok2
-    return v, ok
+    s_lo = np.maximum(1.0, np.abs(np.where(np.isfinite(lo), lo, 0.0)))
+    s_up = np.maximum(1.0, np.abs(np.where(np.isfinite(up), up, 0.0)))
+    for i, margin in enumerate(RETRY_MARGINS):
+        if i and np.isfinite(v).all():
+            break  # larger relaxations only where nothing finite came back
+        logger.debug("backend %s failed on QP %s; retrying with bounds relaxed by %g",
+                     backend.name, slot, margin)
+        v2, ok2 = backend.solve(slot, H, g, E, e, C, lo - margin * s_lo, up + margin * s_up)
+        if ok2:
+            return v2, ok2
+        if not np.isfinite(v).all():
+            v = v2
+    return v, False
 
 
 def _active_rows(lv: CheckedLevel, cx: np.ndarray) -> np.ndarray:

@@ -13,9 +13,25 @@ from hqp.solver.backend import _INF, QPBackend
 EPS_ABS = 1e-9
 """Absolute primal/dual residual tolerance (the contract's cost tolerance needs ~1e-9)."""
 
+MAX_ITER = 100
+"""Outer (proximal augmented Lagrangian) iterations per solve. On the recorded
+whole-body problems (``hqp/bench/data``) the QPs ProxQP solves take a median of
+6 and a 99th percentile of 14 outer iterations; the ones it does not solve
+within 1000 are flat, nearly degenerate feasible sets (implicit equalities from
+active friction-cone, torque and joint-limit rows) with multipliers of order
+1e7, on which ProxQP stalls at 0.2-0.7 s per attempt. Such QPs are handed to
+DAQP (exact on active sets) after this budget instead."""
+
+STALL_SKIP = 50
+"""Solves of a slot handed straight to DAQP after ProxQP stalled on it. The
+level QPs of a control loop change little between steps, so a slot whose
+feasible set was nearly degenerate usually stays so for a while; ProxQP is
+tried again afterwards (the slot starts cold)."""
+
 logger = logging.getLogger(__name__)
 
 _SOLVED = proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED
+_MAX_ITER = proxsuite.proxqp.QPSolverOutput.PROXQP_MAX_ITER_REACHED
 _WARM = proxsuite.proxqp.InitialGuess.WARM_START_WITH_PREVIOUS_RESULT
 
 
@@ -25,10 +41,13 @@ class ProxsuiteBackend(QPBackend):
     The first solve of a slot runs ``init`` (cold start, equilibration); later
     solves with the same dimensions run ``update`` and start from the previous
     primal and dual solution (``WARM_START_WITH_PREVIOUS_RESULT``). A warm
-    solve that does not report success (a stale preconditioner or start can
-    mislead ProxQP's infeasibility detection) is repeated cold, once; a cold
-    solve that fails too (ProxQP stalls on some degenerate vertices) is handed
-    to DAQP, an active-set method that is exact there.
+    solve that reports infeasibility (a stale preconditioner or start can
+    mislead ProxQP's infeasibility detection) is repeated cold, once; a solve
+    that stalls (:data:`MAX_ITER` outer iterations, nearly degenerate feasible
+    sets) or fails cold is handed to DAQP, an active-set method that is exact
+    there; the slot's next :data:`STALL_SKIP` solves go to DAQP directly
+    (ProxQP would stall again on the same nearly degenerate set), then ProxQP
+    starts cold.
     """
 
     name = "proxsuite"
@@ -36,10 +55,12 @@ class ProxsuiteBackend(QPBackend):
     def __init__(self) -> None:
         self._qps: dict[Hashable, tuple[tuple[int, int, int], object]] = {}
         self._daqp: QPBackend | None = None
+        self._skip: dict[Hashable, int] = {}
 
     def reset(self) -> None:
         """Drop every persistent problem."""
         self._qps.clear()
+        self._skip.clear()
 
     @staticmethod
     def _cold(dims, H, g, E, e, C, lo, up):
@@ -48,7 +69,7 @@ class ProxsuiteBackend(QPBackend):
         s = qp.settings
         s.eps_abs = EPS_ABS
         s.eps_rel = 0.0
-        s.max_iter = 1000
+        s.max_iter = MAX_ITER
         s.max_iter_in = 200
         s.verbose = False
         s.compute_timings = False
@@ -80,6 +101,13 @@ class ProxsuiteBackend(QPBackend):
         else:
             C = lo = up = None
         dims = (nv, neq, nin)
+        skip = self._skip.get(slot, 0)
+        if skip:
+            self._skip[slot] = skip - 1
+            v, ok = self._fallback().solve(slot, H, g, E, e, C, lo, up)
+            if ok:
+                return v, ok
+            self._skip.pop(slot, None)
         entry = self._qps.get(slot)
         if entry is None or entry[0] != dims:
             qp = self._cold(dims, H, g, E, e, C, lo, up)
@@ -88,11 +116,18 @@ class ProxsuiteBackend(QPBackend):
             qp = entry[1]
             qp.update(H, g, E, e, C, lo, up)
             qp.solve()
-            if qp.results.info.status != _SOLVED:
+            status = qp.results.info.status
+            if status != _SOLVED and status != _MAX_ITER:
+                # a stale warm start or preconditioner misled the infeasibility test
                 qp = self._cold(dims, H, g, E, e, C, lo, up)
                 self._qps[slot] = (dims, qp)
         if qp.results.info.status == _SOLVED:
             return qp.results.x, True
+        # the stalled iterate is no start for the next step: start that one cold,
+        # and give the next STALL_SKIP solves of this slot to DAQP directly
+        self._qps.pop(slot, None)
+        if qp.results.info.status == _MAX_ITER:
+            self._skip[slot] = STALL_SKIP
         # ProxQP can stall on degenerate vertices (many rows active at one point,
         # which lexicographic problems produce); an active-set method is exact there.
         logger.debug("ProxQP status %s on %s; falling back to DAQP", qp.results.info.status, slot)
