@@ -54,7 +54,14 @@ from typing import Any
 import numpy as np
 from scipy.linalg import lapack
 
-from hqp.errors import InvalidInput, InvalidLevel, SolverFailure, UnknownName, check_array
+from hqp.errors import (
+    InvalidInput,
+    InvalidLevel,
+    SolverFailure,
+    UnknownBackend,
+    UnknownName,
+    check_array,
+)
 from hqp.solver.backend import QPBackend, make_backend
 from hqp.solver.level import CheckedLevel, Level, check_level
 from hqp.solver.solution import ROW_TOL, SATISFIED_COST, LevelReport, Solution
@@ -592,6 +599,9 @@ def _qp(backend: QPBackend, slot: Any, H: np.ndarray, g: np.ndarray,
         lo: np.ndarray | None, up: np.ndarray | None) -> tuple[np.ndarray, bool]:
     """Call the backend; on failure retry with bounds relaxed by :data:`RETRY_MARGINS`.
 
+    If no finite point came back at all, quadprog is tried (a warning is
+    logged); only if that fails too is the non-finite point returned.
+
     The cost is normalised first (``H / s``, ``g / s`` with ``s`` the largest entry
     of ``H``): the minimiser does not change, and the backends' absolute
     tolerances then mean the same thing for levels of any scale.
@@ -615,7 +625,30 @@ def _qp(backend: QPBackend, slot: Any, H: np.ndarray, g: np.ndarray,
             return v2, ok2
         if not np.isfinite(v).all():
             v = v2
+    if not np.isfinite(v).all() and backend.name != "quadprog":
+        # Last resort (rare: nearly degenerate feasible sets of real whole-body
+        # stacks): another active-set method, rather than no solution at all.
+        logger.warning("backend %s returned no finite solution on QP %s; trying quadprog",
+                       backend.name, slot)
+        last = _last_resort()
+        if last is not None:
+            v2, ok2 = last.solve(slot, H, g, E, e, C, lo, up)
+            if np.isfinite(v2).all():
+                return v2, ok2
     return v, False
+
+
+_LAST_RESORT: list[QPBackend] = []
+
+
+def _last_resort() -> QPBackend | None:
+    """Return the shared quadprog backend of :func:`_qp` (``None`` if not installed)."""
+    if not _LAST_RESORT:
+        try:
+            _LAST_RESORT.append(make_backend("quadprog"))
+        except UnknownBackend:
+            return None
+    return _LAST_RESORT[0]
 
 
 def _active_rows(lv: CheckedLevel, cx: np.ndarray) -> np.ndarray:

@@ -13,14 +13,19 @@ from hqp.solver.backend import _INF, QPBackend
 EPS_ABS = 1e-9
 """Absolute primal/dual residual tolerance (the contract's cost tolerance needs ~1e-9)."""
 
-MAX_ITER = 100
+MAX_ITER = 50
 """Outer (proximal augmented Lagrangian) iterations per solve. On the recorded
 whole-body problems (``hqp/bench/data``) the QPs ProxQP solves take a median of
-6 and a 99th percentile of 14 outer iterations; the ones it does not solve
+6 and a 99th percentile of 14 outer iterations (largest seen: 606); the ones it does not solve
 within 1000 are flat, nearly degenerate feasible sets (implicit equalities from
 active friction-cone, torque and joint-limit rows) with multipliers of order
 1e7, on which ProxQP stalls at 0.2-0.7 s per attempt. Such QPs are handed to
 DAQP (exact on active sets) after this budget instead."""
+
+MAX_ITER_IN = 100
+"""Inner (semismooth Newton) iterations per outer iteration. On the stalls
+above the inner loops run long (tens of thousands of inner iterations per
+solve); solved QPs need a few dozen in all."""
 
 STALL_SKIP = 50
 """Solves of a slot handed straight to DAQP after ProxQP stalled on it. The
@@ -70,7 +75,7 @@ class ProxsuiteBackend(QPBackend):
         s.eps_abs = EPS_ABS
         s.eps_rel = 0.0
         s.max_iter = MAX_ITER
-        s.max_iter_in = 200
+        s.max_iter_in = MAX_ITER_IN
         s.verbose = False
         s.compute_timings = False
         # Residuals alone can be tiny while the cost is still off on semidefinite
@@ -103,11 +108,10 @@ class ProxsuiteBackend(QPBackend):
         dims = (nv, neq, nin)
         skip = self._skip.get(slot, 0)
         if skip:
+            # ProxQP stalled on this slot lately: DAQP only (its failure is
+            # reported, and the hierarchy retries with relaxed bounds)
             self._skip[slot] = skip - 1
-            v, ok = self._fallback().solve(slot, H, g, E, e, C, lo, up)
-            if ok:
-                return v, ok
-            self._skip.pop(slot, None)
+            return self._fallback().solve(slot, H, g, E, e, C, lo, up)
         entry = self._qps.get(slot)
         if entry is None or entry[0] != dims:
             qp = self._cold(dims, H, g, E, e, C, lo, up)
