@@ -277,6 +277,7 @@ class HierarchicalSolver:
     def reset(self) -> None:
         """Forget the persistent QPs (the next solve starts cold)."""
         self._backend.reset()
+        self._backend.__dict__.pop("_hqp_relaxed", None)
 
     def solve(
         self,
@@ -610,18 +611,31 @@ def _qp(backend: QPBackend, slot: Any, H: np.ndarray, g: np.ndarray,
     if scale > 0.0 and (scale < 0.1 or scale > 10.0):
         H = H / scale
         g = g / scale
+    has_in = C is not None and lo is not None and up is not None
+    memo: dict[Any, list[int]] = backend.__dict__.setdefault("_hqp_relaxed", {})
+    sticky = memo.get(slot) if has_in else None
+    if sticky is not None:
+        # this slot needed a relaxation lately: start there (see RELAX_STICKY)
+        i, left = sticky
+        if left <= 1:
+            del memo[slot]
+        else:
+            sticky[1] = left - 1
+        v, ok = backend.solve(slot, H, g, E, e, C, *_relaxed(lo, up, RETRY_MARGINS[i]))
+        if ok:
+            return v, ok
+        memo.pop(slot, None)
     v, ok = backend.solve(slot, H, g, E, e, C, lo, up)
-    if ok or C is None or lo is None or up is None:
+    if ok or not has_in:
         return v, ok
-    s_lo = np.maximum(1.0, np.abs(np.where(np.isfinite(lo), lo, 0.0)))
-    s_up = np.maximum(1.0, np.abs(np.where(np.isfinite(up), up, 0.0)))
     for i, margin in enumerate(RETRY_MARGINS):
         if i and np.isfinite(v).all():
             break  # larger relaxations only where nothing finite came back
         logger.debug("backend %s failed on QP %s; retrying with bounds relaxed by %g",
                      backend.name, slot, margin)
-        v2, ok2 = backend.solve(slot, H, g, E, e, C, lo - margin * s_lo, up + margin * s_up)
+        v2, ok2 = backend.solve(slot, H, g, E, e, C, *_relaxed(lo, up, margin))
         if ok2:
+            memo[slot] = [i, RELAX_STICKY]
             return v2, ok2
         if not np.isfinite(v).all():
             v = v2
@@ -636,6 +650,20 @@ def _qp(backend: QPBackend, slot: Any, H: np.ndarray, g: np.ndarray,
             if np.isfinite(v2).all():
                 return v2, ok2
     return v, False
+
+
+RELAX_STICKY = 20
+"""Solves of a level slot that start directly with the relaxation that last
+succeeded on it. The QPs of a control loop change little from step to step: a
+nearly degenerate feasible set that needed a relaxation stays so for a while,
+and each failed unrelaxed attempt costs up to tens of milliseconds."""
+
+
+def _relaxed(lo: np.ndarray, up: np.ndarray, margin: float) -> tuple[np.ndarray, np.ndarray]:
+    """Return the bounds relaxed by ``margin * max(1, |bound|)``."""
+    s_lo = np.maximum(1.0, np.abs(np.where(np.isfinite(lo), lo, 0.0)))
+    s_up = np.maximum(1.0, np.abs(np.where(np.isfinite(up), up, 0.0)))
+    return lo - margin * s_lo, up + margin * s_up
 
 
 _LAST_RESORT: list[QPBackend] = []

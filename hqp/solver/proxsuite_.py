@@ -27,7 +27,7 @@ MAX_ITER_IN = 100
 above the inner loops run long (tens of thousands of inner iterations per
 solve); solved QPs need a few dozen in all."""
 
-STALL_SKIP = 50
+STALL_SKIP = 200
 """Solves of a slot handed straight to DAQP after ProxQP stalled on it. The
 level QPs of a control loop change little between steps, so a slot whose
 feasible set was nearly degenerate usually stays so for a while; ProxQP is
