@@ -601,7 +601,9 @@ def _qp(backend: QPBackend, slot: Any, H: np.ndarray, g: np.ndarray,
     """Call the backend; on failure retry with bounds relaxed by :data:`RETRY_MARGINS`.
 
     If no finite point came back at all, quadprog is tried (a warning is
-    logged); only if that fails too is the non-finite point returned.
+    logged), then quadprog with the equality rows as boxes of width
+    :data:`RETRY_MARGIN` and relaxed inequality bounds; only if that fails too
+    is the non-finite point returned.
 
     The cost is normalised first (``H / s``, ``g / s`` with ``s`` the largest entry
     of ``H``): the minimiser does not change, and the backends' absolute
@@ -639,7 +641,7 @@ def _qp(backend: QPBackend, slot: Any, H: np.ndarray, g: np.ndarray,
             return v2, ok2
         if not np.isfinite(v).all():
             v = v2
-    if not np.isfinite(v).all() and backend.name != "quadprog":
+    if not np.isfinite(v).all():
         # Last resort (rare: nearly degenerate feasible sets of real whole-body
         # stacks): another active-set method, rather than no solution at all.
         logger.warning("backend %s returned no finite solution on QP %s; trying quadprog",
@@ -647,6 +649,15 @@ def _qp(backend: QPBackend, slot: Any, H: np.ndarray, g: np.ndarray,
         last = _last_resort()
         if last is not None:
             v2, ok2 = last.solve(slot, H, g, E, e, C, lo, up)
+            if not np.isfinite(v2).all() and E is not None and E.shape[0]:
+                # the cascade's held equality rows as boxes of RETRY_MARGIN
+                # (nearly dependent on held inequality rows, real stacks)
+                se = RETRY_MARGIN * np.maximum(1.0, np.abs(e))
+                rl, ru = _relaxed(lo, up, RETRY_MARGIN) if has_in else (None, None)
+                Cb = E if not has_in else np.concatenate((E, C))
+                lb = e - se if not has_in else np.concatenate((e - se, rl))
+                ub = e + se if not has_in else np.concatenate((e + se, ru))
+                v2, ok2 = last.solve(slot, H, g, None, None, Cb, lb, ub)
             if np.isfinite(v2).all():
                 return v2, ok2
     return v, False
