@@ -35,9 +35,28 @@ def make_layout(robot: RobotModel, cs: list[Contact]) -> Layout:
     return Layout.build(robot.nv, [c.layout_entry() for c in cs])
 
 
-def test_motion_rows_predict_finite_difference_acceleration(robot: RobotModel) -> None:
+FEET = {
+    "sample": ("rleg_effector_body", "rarm_effector_body"),
+    "paper-humanoid": ("left_foot", "right_hand"),
+    "g1": ("left_foot", "right_hand"),
+    "talos": ("left_foot", "right_hand"),
+}
+
+
+@pytest.mark.parametrize("name", sorted(FEET))
+def test_motion_rows_predict_finite_difference_acceleration(name: str) -> None:
+    if name == "sample":
+        robot = RobotModel(pin.buildSampleModelHumanoid(), name="sample")
+    else:
+        from hqp.robots import load
+
+        robot = load(name).model()
     rng = np.random.default_rng(5)
-    cs = contacts()
+    foot, hand = FEET[name]
+    cs = [
+        Contact("foot", foot, mu=MU, half_length=X, half_width=Y),
+        Contact("hand", hand, ContactType.POINT, mu=MU),
+    ]
     layout = make_layout(robot, cs)
     other = RobotModel(robot.model, name="fd")
     eps = 1e-6

@@ -32,13 +32,20 @@ G1 = ERD / "g1_description" / "urdf" / "g1_29dof_rev_1_0.urdf"
 FRAMES = {
     "sample": ("rarm_wrist2_joint", "head2_joint", "rleg_effector_body"),
     "g1": ("right_wrist_yaw_link", "torso_link", "left_ankle_roll_link"),
+    # the bundled robots share frame names
+    "paper-humanoid": ("right_hand", "head", "left_foot"),
+    "talos": ("right_hand", "head", "left_foot"),
 }
 
 
-@pytest.fixture(scope="module", params=["sample", "g1"])
+@pytest.fixture(scope="module", params=["sample", "g1", "paper-humanoid", "talos"])
 def robot(request) -> RobotModel:
     if request.param == "sample":
         return RobotModel(pin.buildSampleModelHumanoid(), name="sample")
+    if request.param in ("paper-humanoid", "talos"):
+        from hqp.robots import load
+
+        return load(request.param).model()
     if not G1.is_file():
         pytest.skip("example-robot-data G1 URDF not found")
     return RobotModel.from_urdf(G1, name="g1")
