@@ -87,6 +87,7 @@ def check_array(
 
     Raises:
         InvalidInput: Wrong shape, NaN, or inf where not allowed.
+
     """
     try:
         arr = np.array(value, dtype=float)

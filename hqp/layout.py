@@ -37,6 +37,7 @@ class ContactSlot:
         frame: Robot frame at which the wrench applies.
         kind: Surface (6 entries) or point (3 entries).
         start: Index of the slot's first entry in ``x``.
+
     """
 
     name: str
@@ -62,6 +63,7 @@ class Layout:
     Attributes:
         nv: Number of joint velocities (size of ``qdd``).
         contacts: Contact slots, in order.
+
     """
 
     nv: int
@@ -73,6 +75,7 @@ class Layout:
 
         Raises:
             InvalidInput: Duplicate contact names or a non-positive ``nv``.
+
         """
         if nv <= 0:
             raise InvalidInput(f"Layout: nv must be positive, got {nv}")
@@ -98,10 +101,11 @@ class Layout:
         return slice(0, self.nv)
 
     def contact(self, name: str) -> ContactSlot:
-        """The slot of a contact by name.
+        """Return the slot of a contact by name.
 
         Raises:
             InvalidInput: No contact of that name (lists the declared ones).
+
         """
         for c in self.contacts:
             if c.name == name:
@@ -110,5 +114,5 @@ class Layout:
         raise InvalidInput(f"Layout: unknown contact {name!r}; declared contacts: {names}")
 
     def zeros(self, rows: int = 0) -> np.ndarray:
-        """A zero matrix ``(rows, n)``, or a zero vector ``(n,)`` when ``rows == 0``."""
+        """Return a zero matrix ``(rows, n)``, or a zero vector ``(n,)`` when ``rows == 0``."""
         return np.zeros((rows, self.n)) if rows else np.zeros(self.n)

@@ -38,6 +38,7 @@ class RobotState:
         contacts: Sensed contact state by contact name (``None``: not sensed).
         wrenches: Measured contact wrenches ``(6,)`` or forces ``(3,)`` by
             contact name (``None``: not measured).
+
     """
 
     q: np.ndarray
@@ -64,6 +65,7 @@ class RobotModel:
     Raises:
         InvalidInput: A joint with more than one degree of freedom besides the
             free flyer, or limits of the wrong shape.
+
     """
 
     def __init__(
@@ -84,7 +86,9 @@ class RobotModel:
         self.nv = model.nv
         first = 2 if floating_base else 1
         if floating_base and model.joints[1].nv != 6:
-            raise InvalidInput(f"RobotModel {name!r}: floating_base but joint 1 is not a free flyer")
+            raise InvalidInput(
+                f"RobotModel {name!r}: floating_base but joint 1 is not a free flyer"
+            )
         for j in range(first, model.njoints):
             if model.joints[j].nv != 1 or model.joints[j].nq != 1:
                 raise InvalidInput(
@@ -110,8 +114,12 @@ class RobotModel:
             lower = np.array(model.lowerPositionLimit[self.actuated_q])
             upper = np.array(model.upperPositionLimit[self.actuated_q])
         else:
-            lower = check_array(position_limits[0], (self.na,), f"RobotModel {name!r}: lower limits")
-            upper = check_array(position_limits[1], (self.na,), f"RobotModel {name!r}: upper limits")
+            lower = check_array(
+                position_limits[0], (self.na,), f"RobotModel {name!r}: lower limits"
+            )
+            upper = check_array(
+                position_limits[1], (self.na,), f"RobotModel {name!r}: upper limits"
+            )
         if np.any(lower > upper):
             raise InvalidInput(f"RobotModel {name!r}: a lower position limit exceeds its upper one")
         self.q_lower = lower
@@ -164,7 +172,9 @@ class RobotModel:
         return cls(model, floating_base=floating_base, **kwargs)  # type: ignore[arg-type]
 
     @classmethod
-    def from_mjcf(cls, path: str | Path, *, floating_base: bool = True, **kwargs: object) -> RobotModel:
+    def from_mjcf(
+        cls, path: str | Path, *, floating_base: bool = True, **kwargs: object
+    ) -> RobotModel:
         """Build from an MJCF file (its free joint becomes pinocchio's free flyer)."""
         model = pin.buildModelFromMJCF(str(path))
         return cls(model, floating_base=floating_base, **kwargs)  # type: ignore[arg-type]
@@ -176,6 +186,7 @@ class RobotModel:
 
         Raises:
             InvalidFrame: Unknown name; the message lists the frames that exist.
+
         """
         try:
             return self._frame_ids[name]
@@ -191,12 +202,14 @@ class RobotModel:
 
         Raises:
             InvalidInput: Unknown joint; the message lists the joints.
+
         """
         try:
             return self.joint_names.index(name)
         except ValueError:
             raise InvalidInput(
-                f"robot {self.name!r}: unknown joint {name!r}; joints: {', '.join(self.joint_names)}"
+                f"robot {self.name!r}: unknown joint {name!r}; "
+                f"joints: {', '.join(self.joint_names)}"
             ) from None
 
     # -- update -------------------------------------------------------------------------------
@@ -206,6 +219,7 @@ class RobotModel:
 
         Raises:
             InvalidInput: Wrong shape or non-finite entries.
+
         """
         q = np.asarray(q, dtype=float)
         v = np.asarray(v, dtype=float)
@@ -309,7 +323,7 @@ class RobotModel:
         return pin.difference(self.model, q0, q1)
 
     def random_configuration(self, rng: np.random.Generator, margin: float = 0.0) -> np.ndarray:
-        """A configuration with actuated joints uniform inside their limits (shrunk by ``margin``).
+        """Draw a configuration, actuated joints uniform within their limits shrunk by ``margin``.
 
         The base (if any) is placed at a random position within 1 m of the
         origin with a random orientation.

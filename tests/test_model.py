@@ -38,7 +38,9 @@ def test_drift_terms_match_finite_differences(sample: RobotModel) -> None:
         other.update(sample.integrate(q, v * eps), v)  # qdd = 0 along the step
         for name in frames:
             fd = (other.frame_velocity(name) - sample.frame_velocity(name)) / eps
-            np.testing.assert_allclose(fd, sample.frame_drift(name), atol=1e-4 * (1 + np.abs(fd).max()))
+            np.testing.assert_allclose(
+                fd, sample.frame_drift(name), atol=1e-4 * (1 + np.abs(fd).max())
+            )
         fd_com = (other.com_velocity - sample.com_velocity) / eps
         np.testing.assert_allclose(fd_com, sample.com_drift, atol=1e-4 * (1 + np.abs(fd_com).max()))
         np.testing.assert_allclose(sample.com_jacobian @ v, sample.com_velocity, atol=1e-10)
@@ -46,7 +48,9 @@ def test_drift_terms_match_finite_differences(sample: RobotModel) -> None:
 
 
 def test_layout_slots() -> None:
-    layout = Layout.build(10, [("left", "lf", ContactType.SURFACE), ("hand", "rh", ContactType.POINT)])
+    layout = Layout.build(
+        10, [("left", "lf", ContactType.SURFACE), ("hand", "rh", ContactType.POINT)]
+    )
     assert layout.n == 19
     assert layout.contact("left").slice == slice(10, 16)
     assert layout.contact("hand").slice == slice(16, 19)

@@ -56,6 +56,7 @@ class Rows:
         C: Inequality matrix ``(m_in, n)`` or ``None``.
         lower: Inequality lower bounds ``(m_in,)`` (may hold ``-inf``) or ``None``.
         upper: Inequality upper bounds ``(m_in,)`` (may hold ``+inf``) or ``None``.
+
     """
 
     A: np.ndarray | None = None
@@ -117,6 +118,7 @@ class Task(abc.ABC):
 
     Raises:
         InvalidGain: Negative or non-finite weight.
+
     """
 
     category: Category = Category.OPERATIONAL
@@ -126,7 +128,9 @@ class Task(abc.ABC):
         from hqp.errors import InvalidGain
 
         if not np.isfinite(weight) or weight <= 0.0:
-            raise InvalidGain(f"{type(self).__name__} {name!r}: weight must be positive, got {weight}")
+            raise InvalidGain(
+                f"{type(self).__name__} {name!r}: weight must be positive, got {weight}"
+            )
         self.name = name
         self.weight = float(weight)
 
@@ -139,6 +143,7 @@ class Task(abc.ABC):
             layout: Decision-variable layout.
             dt: Control period [s].
             t: Time [s].
+
         """
 
     def error(self) -> np.ndarray:
