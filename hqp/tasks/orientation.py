@@ -8,7 +8,6 @@ from typing import TYPE_CHECKING
 import numpy as np
 import pinocchio as pin
 
-from hqp.errors import check_array
 from hqp.tasks.base import Category
 from hqp.tasks.reference import MinimumJerkRotation, TrajectorySample, check_rotation
 from hqp.tasks.tracking import TaskKinematics, TrackingTask
@@ -131,15 +130,8 @@ class OrientationTask(TrackingTask):
     def _check_goal(
         self, goal: object, velocity: object | None, acceleration: object | None
     ) -> TrajectorySample:
-        w = self.where()
-        R = check_rotation(goal, f"{w}: goal")
-        v = np.zeros(3) if velocity is None else check_array(velocity, (3,), f"{w}: goal velocity")
-        a = (
-            np.zeros(3)
-            if acceleration is None
-            else check_array(acceleration, (3,), f"{w}: goal acceleration")
-        )
-        return TrajectorySample(R, v, a)
+        R = check_rotation(goal, f"{self.where()}: goal")
+        return self._goal_sample(R, velocity, acceleration, 3)
 
     def set_goal(
         self, goal: object, velocity: object | None = None, acceleration: object | None = None

@@ -7,7 +7,6 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from hqp.errors import check_array
 from hqp.tasks.base import Category
 from hqp.tasks.orientation import orientation_kinematics
 from hqp.tasks.reference import MinimumJerkPose, PDReference, TrajectorySample, check_placement
@@ -113,15 +112,8 @@ class PoseTask(TrackingTask):
     def _check_goal(
         self, goal: object, velocity: object | None, acceleration: object | None
     ) -> TrajectorySample:
-        w = self.where()
-        H = check_placement(goal, f"{w}: goal")
-        v = np.zeros(6) if velocity is None else check_array(velocity, (6,), f"{w}: goal velocity")
-        a = (
-            np.zeros(6)
-            if acceleration is None
-            else check_array(acceleration, (6,), f"{w}: goal acceleration")
-        )
-        return TrajectorySample(H, v, a)
+        H = check_placement(goal, f"{self.where()}: goal")
+        return self._goal_sample(H, velocity, acceleration, 6)
 
     def set_goal(
         self, goal: object, velocity: object | None = None, acceleration: object | None = None

@@ -186,6 +186,34 @@ class TrackingTask(Task):
             raise InvalidInput(f"{self.where()}: goal not set (call set_goal or set_trajectory)")
         return self._goal
 
+    def _goal_sample(
+        self,
+        position: np.ndarray,
+        velocity: object | None,
+        acceleration: object | None,
+        size: int,
+    ) -> TrajectorySample:
+        """Sample of a validated goal ``position`` with checked derivatives ``(size,)``.
+
+        Missing ``velocity`` or ``acceleration`` default to zero.
+
+        Raises:
+            InvalidInput: A derivative of the wrong shape or NaN/inf (names the primitive).
+
+        """
+        w = self.where()
+        v = (
+            np.zeros(size)
+            if velocity is None
+            else check_array(velocity, (size,), f"{w}: goal velocity")
+        )
+        a = (
+            np.zeros(size)
+            if acceleration is None
+            else check_array(acceleration, (size,), f"{w}: goal acceleration")
+        )
+        return TrajectorySample(position, v, a)
+
     def _store_goal(self, sample: TrajectorySample) -> None:
         self._goal = sample
         self._trajectory = None
@@ -245,15 +273,8 @@ class VectorGoalTask(TrackingTask):
         self, goal: object, velocity: object | None, acceleration: object | None
     ) -> TrajectorySample:
         m = self.goal_size
-        w = self.where()
-        g = check_array(goal, (m,), f"{w}: goal")
-        v = np.zeros(m) if velocity is None else check_array(velocity, (m,), f"{w}: goal velocity")
-        a = (
-            np.zeros(m)
-            if acceleration is None
-            else check_array(acceleration, (m,), f"{w}: goal acceleration")
-        )
-        return TrajectorySample(g, v, a)
+        g = check_array(goal, (m,), f"{self.where()}: goal")
+        return self._goal_sample(g, velocity, acceleration, m)
 
     def set_goal(
         self,
