@@ -42,9 +42,10 @@ went past their limits in MuJoCo."""
 JOINT_VELOCITY_SCALE = 0.5
 """Fraction of the model's joint velocity limits used by the viable bounds."""
 
-BACKEND = "quadprog"
-"""QP backend of the HQP controller in the scenarios (daqp and proxsuite fell back to the
-safe command on the hand-reach stack when this was written)."""
+BACKEND = "daqp"
+"""QP backend of the HQP controller in the scenarios. DAQP since the solver's robustness
+fixes (0 safe-mode steps on hand-reach); quadprog's basis solves were found suboptimal on
+some real problems (tests/test_solver_real.py)."""
 
 
 @dataclass
