@@ -9,6 +9,7 @@ import numpy as np
 
 from hqp.tasks.base import Category
 from hqp.tasks.orientation import orientation_kinematics
+from hqp.tasks.position import frame_position_kinematics
 from hqp.tasks.reference import MinimumJerkPose, PDReference, TrajectorySample, check_placement
 from hqp.tasks.tracking import TaskKinematics, TrackingTask
 
@@ -143,15 +144,12 @@ class PoseTask(TrackingTask):
             self.frame,
             TrajectorySample(g.position[:3, :3], g.velocity[3:], g.acceleration[3:]),
         )
-        p = state.frame_placement(self.frame).translation
-        J = state.frame_jacobian(self.frame)
-        v = state.frame_velocity(self.frame)
-        a = state.frame_drift(self.frame)
+        p, v, J, a = frame_position_kinematics(state, self.frame)
         return TaskKinematics(
             np.concatenate([p - g.position[:3, 3], rot.error]),
-            np.concatenate([v[:3] - g.velocity[:3], rot.rate]),
-            np.vstack([J[:3], rot.jacobian]),
-            np.concatenate([a[:3] - g.acceleration[:3], rot.drift]),
+            np.concatenate([v - g.velocity[:3], rot.rate]),
+            np.vstack([J, rot.jacobian]),
+            np.concatenate([a - g.acceleration[:3], rot.drift]),
         )
 
     def feedback(self, kin: TaskKinematics) -> np.ndarray:

@@ -15,6 +15,24 @@ if TYPE_CHECKING:
     from hqp.model import RobotModel
 
 
+def frame_position_kinematics(
+    state: RobotModel, frame: str
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """World position of a frame's origin and its derivatives at the updated state.
+
+    Returns:
+        ``(p, pd, J_lin, a_lin)``: position ``(3,)`` [m], velocity ``(3,)`` [m/s],
+        linear rows ``(3, nv)`` of the ``LOCAL_WORLD_ALIGNED`` frame Jacobian and
+        the origin's classical acceleration at ``qdd = 0`` ``(3,)`` [m/s^2].
+
+    """
+    p = state.frame_placement(frame).translation
+    J = state.frame_jacobian(frame)
+    v = state.frame_velocity(frame)
+    a = state.frame_drift(frame)
+    return p, v[:3], J[:3], a[:3]
+
+
 class PositionTask(VectorTrackingTask):
     """World position ``p(q)`` of a frame's origin (seed 001 ``PositionPrimitive``).
 
@@ -70,8 +88,5 @@ class PositionTask(VectorTrackingTask):
     def measure(self, state: RobotModel) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """``(S p, S pd, S J_lin, S a_lin)``."""
         ax = self.axes
-        p = state.frame_placement(self.frame).translation
-        J = state.frame_jacobian(self.frame)
-        v = state.frame_velocity(self.frame)
-        a = state.frame_drift(self.frame)
+        p, v, J, a = frame_position_kinematics(state, self.frame)
         return p[ax], v[ax], J[ax], a[ax]
