@@ -153,15 +153,9 @@ class HybridTask(PoseTask):
             np.concatenate([full.drift[lin], drift[ang]]),
         )
 
-    def feedback(self, kin: TaskKinematics) -> np.ndarray:
-        """Return the translation and rotation feedback, each with its own saturations."""
-        k = len(self._linear)
-        return np.concatenate(
-            [
-                self.reference.feedback(kin.error[:k], kin.rate[:k]),
-                self.angular_reference.feedback(kin.error[k:], kin.rate[k:]),
-            ]
-        )
+    def _translation_rows(self) -> int:
+        """Return the number of motion-controlled translation rows leading :meth:`kinematics`."""
+        return len(self._linear)
 
     def rows(self, state: RobotModel, layout: Layout, dt: float, t: float) -> Rows:
         """Motion rows over ``qdd`` then force rows over the contact slot.

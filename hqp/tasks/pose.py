@@ -152,11 +152,16 @@ class PoseTask(TrackingTask):
             np.concatenate([a - g.acceleration[:3], rot.drift]),
         )
 
+    def _translation_rows(self) -> int:
+        """Return the number of leading translation rows of :meth:`kinematics` (then rotation)."""
+        return 3
+
     def feedback(self, kin: TaskKinematics) -> np.ndarray:
         """Return the translation and rotation feedback, each with its own saturations."""
+        k = self._translation_rows()
         return np.concatenate(
             [
-                self.reference.feedback(kin.error[:3], kin.rate[:3]),
-                self.angular_reference.feedback(kin.error[3:], kin.rate[3:]),
+                self.reference.feedback(kin.error[:k], kin.rate[:k]),
+                self.angular_reference.feedback(kin.error[k:], kin.rate[k:]),
             ]
         )
