@@ -10,7 +10,7 @@ import numpy as np
 
 from hqp.errors import InvalidInput, check_array
 from hqp.tasks.base import Category, Rows, Task
-from hqp.tasks.reference import PDReference, Trajectory, TrajectorySample
+from hqp.tasks.reference import PDReference, Trajectory, TrajectorySample, check_trajectory
 
 if TYPE_CHECKING:
     from hqp.layout import Layout
@@ -122,9 +122,7 @@ class CentroidalMomentumTask(Task):
             InvalidInput: ``trajectory`` has no ``sample`` method.
 
         """
-        if not callable(getattr(trajectory, "sample", None)):
-            raise InvalidInput(f"{self.where()}: a trajectory needs a sample(t) method")
-        self._trajectory = trajectory
+        self._trajectory = check_trajectory(trajectory, self.where())
 
     @property
     def trajectory(self) -> Trajectory | None:

@@ -11,7 +11,7 @@ import numpy as np
 from hqp.errors import InvalidInput, check_array
 from hqp.layout import ContactType
 from hqp.tasks.base import Category, Rows, Task
-from hqp.tasks.reference import Trajectory
+from hqp.tasks.reference import Trajectory, check_trajectory
 
 if TYPE_CHECKING:
     from hqp.layout import ContactSlot, Layout
@@ -135,9 +135,7 @@ class CoPTask(Task):
             InvalidInput: ``trajectory`` has no ``sample`` method.
 
         """
-        if not callable(getattr(trajectory, "sample", None)):
-            raise InvalidInput(f"{self.where()}: a trajectory needs a sample(t) method")
-        self._trajectory = trajectory
+        self._trajectory = check_trajectory(trajectory, self.where())
 
     def goal_at(self, t: float) -> np.ndarray:
         """Return the CoP goal ``(2,)`` at time ``t``.

@@ -188,6 +188,18 @@ class Trajectory(Protocol):
         ...
 
 
+def check_trajectory(trajectory: object, where: str) -> Trajectory:
+    """Check that ``trajectory`` has a callable ``sample(t)``; return it unchanged.
+
+    Raises:
+        InvalidInput: ``trajectory`` has no ``sample`` method.
+
+    """
+    if not callable(getattr(trajectory, "sample", None)):
+        raise InvalidInput(f"{where}: a trajectory needs a sample(t) method")
+    return trajectory  # type: ignore[return-value]
+
+
 def _min_jerk_profile(tau: float, duration: float) -> tuple[float, float, float]:
     """Minimum-jerk fraction ``s`` and its first two time derivatives, clipped to ``[0, T]``."""
     if tau <= 0.0:

@@ -28,7 +28,13 @@ import numpy as np
 
 from hqp.errors import InvalidInput, check_array
 from hqp.tasks.base import Rows, Task
-from hqp.tasks.reference import MinimumJerk, PDReference, Trajectory, TrajectorySample
+from hqp.tasks.reference import (
+    MinimumJerk,
+    PDReference,
+    Trajectory,
+    TrajectorySample,
+    check_trajectory,
+)
 
 if TYPE_CHECKING:
     from hqp.layout import Layout
@@ -162,9 +168,7 @@ class TrackingTask(Task):
             InvalidInput: ``trajectory`` has no ``sample`` method.
 
         """
-        if not callable(getattr(trajectory, "sample", None)):
-            raise InvalidInput(f"{self.where()}: a trajectory needs a sample(t) method")
-        self._trajectory = trajectory
+        self._trajectory = check_trajectory(trajectory, self.where())
         self._goal = None
 
     @property
