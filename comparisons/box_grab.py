@@ -24,7 +24,7 @@ from __future__ import annotations
 import numpy as np
 
 from comparisons.base import Progress, RunResult, RunSpec, Scenario
-from comparisons.common import Hierarchy, run_controller
+from comparisons.common import Hierarchy, run_controller, standing_setup
 from comparisons.metrics import Trace
 from comparisons.record import positions, trace_from_log
 from hqp.plots import Line, Panel
@@ -64,17 +64,13 @@ class BoxGrab(Scenario):
 
     def build(self, robot_name: str, spec: RunSpec) -> tuple[object, object, Hierarchy, dict]:
         """Robot, controller model, hierarchy and goals of one run."""
-        from hqp.robots import load
-        from hqp.tasks.com import CoMTask, support_center
+        from hqp.tasks.com import CoMTask
         from hqp.tasks.orientation import OrientationTask
         from hqp.tasks.position import PositionTask
         from hqp.tasks.posture import PostureTask
         from hqp.tasks.reference import MinimumJerk
 
-        robot = load(robot_name)
-        model = robot.model()
-        model.update(robot.q_standing, np.zeros(model.nv))
-        feet = support_center(model, list(robot.feet))
+        robot, model, feet = standing_setup(robot_name)
         center = np.array([feet[0], feet[1], 0.0]) + np.array(BOX_CENTER)
         cog = CoMTask(model, horizontal=True, name="cog", kp=100.0, kv=20.0, max_velocity=0.5)
         cog.set_goal(feet[:2])

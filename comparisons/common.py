@@ -62,6 +62,22 @@ class Hierarchy:
     collision: list[Task] = field(default_factory=list)
 
 
+def standing_setup(name: str) -> tuple[Robot, RobotModel, np.ndarray]:
+    """Load a robot, its controller model updated at the standing configuration, the feet centre.
+
+    Returns:
+        ``(robot, model, feet)`` with ``feet`` the centre of the soles ``(3,)`` [m] in the world.
+
+    """
+    from hqp.robots import load
+    from hqp.tasks.com import support_center
+
+    robot = load(name)
+    model = robot.model()
+    model.update(robot.q_standing, np.zeros(model.nv))
+    return robot, model, support_center(model, list(robot.feet))
+
+
 def feet_contacts(robot: Robot, model: RobotModel) -> list[Task]:
     """Return the two sole contacts, as the standing controllers declare them.
 

@@ -45,7 +45,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from comparisons.base import Progress, RunResult, RunSpec, Scenario
-from comparisons.common import Hierarchy, run_controller
+from comparisons.common import Hierarchy, run_controller, standing_setup
 from comparisons.metrics import Trace
 from comparisons.record import trace_from_log
 from hqp.plots import Line, Panel
@@ -98,16 +98,12 @@ class HandReach(Scenario):
 
     def build(self, robot_name: str, spec: RunSpec) -> tuple[object, object, Hierarchy, dict]:
         """Robot, controller model, hierarchy and goals of one run."""
-        from hqp.robots import load
-        from hqp.tasks.com import CoMTask, support_center
+        from hqp.tasks.com import CoMTask
         from hqp.tasks.position import PositionTask
         from hqp.tasks.posture import PostureTask
 
         p = self.parameters
-        robot = load(robot_name)
-        model = robot.model()
-        model.update(robot.q_standing, np.zeros(model.nv))
-        feet = support_center(model, list(robot.feet))
+        robot, model, feet = standing_setup(robot_name)
         goal_cog = feet[:2].copy()
         target = np.array([feet[0], feet[1], 0.0]) + np.array(p.target_offset)
         w_cog, w_hand = p.shared_weights if spec.hierarchy == "shared" else (1.0, 1.0)

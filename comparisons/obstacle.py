@@ -28,7 +28,7 @@ import numpy as np
 import pinocchio as pin
 
 from comparisons.base import Progress, RunResult, RunSpec, Scenario
-from comparisons.common import Hierarchy, run_controller
+from comparisons.common import Hierarchy, run_controller, standing_setup
 from comparisons.metrics import Trace
 from comparisons.record import trace_from_log
 from hqp.plots import Line, Panel
@@ -116,17 +116,13 @@ class Obstacle(Scenario):
 
     def simulate(self, robot: str, spec: RunSpec, duration: float, progress: Progress) -> RunResult:
         """Run one controller in MuJoCo while the obstacle moves."""
-        from hqp.robots import load
         from hqp.tasks.collision import ObstacleAvoidance
-        from hqp.tasks.com import CoMTask, support_center
+        from hqp.tasks.com import CoMTask
         from hqp.tasks.position import PositionTask
         from hqp.tasks.posture import PostureTask
         from hqp.world import Sphere, World
 
-        rob = load(robot)
-        model = rob.model()
-        model.update(rob.q_standing, np.zeros(model.nv))
-        feet = support_center(model, list(rob.feet))
+        rob, model, feet = standing_setup(robot)
         origin = np.array([feet[0], feet[1], 0.0])
         start, _ = obstacle_path(0.0, origin)
         world = World([Sphere("obstacle", start, RADIUS)])

@@ -34,7 +34,7 @@ import numpy as np
 import pinocchio as pin
 
 from comparisons.base import Progress, RunResult, RunSpec, Scenario
-from comparisons.common import Hierarchy, run_controller
+from comparisons.common import Hierarchy, run_controller, standing_setup
 from comparisons.metrics import Trace, final_window
 from comparisons.record import trace_from_log
 from hqp.plots import Line, Panel
@@ -107,18 +107,14 @@ class Screwgun(Scenario):
 
     def simulate(self, robot: str, spec: RunSpec, duration: float, progress: Progress) -> RunResult:
         """Run one controller in MuJoCo while the teleoperated point moves."""
-        from hqp.robots import load
-        from hqp.tasks.com import CoMTask, support_center
+        from hqp.tasks.com import CoMTask
         from hqp.tasks.gaze import GazeTask
         from hqp.tasks.internal_forces import InternalForcesTask
         from hqp.tasks.orientation import OrientationTask
         from hqp.tasks.position import PositionTask
         from hqp.tasks.posture import PostureTask
 
-        rob = load(robot)
-        model = rob.model()
-        model.update(rob.q_standing, np.zeros(model.nv))
-        feet = support_center(model, list(rob.feet))
+        rob, model, feet = standing_setup(robot)
         origin = np.array([feet[0], feet[1], 0.0])
         hand_frame = rob.hands[1]
         start = model.frame_placement(hand_frame).translation.copy()

@@ -34,6 +34,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from hqp.tasks.dynamics import joint_torques
+
 if TYPE_CHECKING:
     from hqp.model import RobotModel, RobotState
     from hqp.robots import Robot
@@ -406,8 +408,6 @@ class WholeBodyController(Controller):
             InvalidInput: The state has the wrong shape or holds NaN or inf.
 
         """
-        from hqp.errors import HQPError
-
         clock = time.perf_counter
         t0 = clock()
         self.model.update(state.q, state.v)
@@ -420,31 +420,15 @@ class WholeBodyController(Controller):
         built = self.stack.build(self.model, self.layout, self.dt, t, x_prev)
         t2 = clock()
         notes: list[str] = []
-        solution = None
-        try:
-            solution = self.solver.solve(built.levels, final_metric=self.final_metric,
-                                         final_target=self.final_target)
-        except HQPError as exc:
-            notes.append(f"solve failed: {exc}")
-            logger.warning("t=%.4f: solve failed (%s); safe command sent", t, exc)
+        result = self._solve_built(built, t, notes)
         t3 = clock()
-        x = None if solution is None else solution.x
-        if x is not None and not np.all(np.isfinite(x)):
-            notes.append("solver returned non-finite values")
-            logger.warning("t=%.4f: non-finite solution; safe command sent", t)
-            x = None
-        safe = x is None
-        if x is not None:
-            tau = self.torques(x)
-            if not np.all(np.isfinite(tau)):
-                notes.append("non-finite torques")
-                safe = True
-        if safe:
+        safe = result is None
+        if result is None:
             tau, qdd, wrenches = self.safe_command()
             notes.append("safe mode: gravity and contact compensation with joint damping")
             self.last_x = None
         else:
-            assert x is not None
+            x, tau = result
             qdd = x[: self.layout.nv].copy()
             wrenches = {c.name: x[c.slice].copy() for c in self.layout.contacts}
             self.last_x = x.copy()
@@ -459,23 +443,63 @@ class WholeBodyController(Controller):
                 notes.append(f"command clipped to the model's torque limits (by up to "
                              f"{worst:.3g} N m)")
         t4 = clock()
-        statuses = () if safe or solution is None else self._statuses(built, solution)
+        statuses, costs = self._feasibility(built, None if result is None else result[0], notes)
         report = FeasibilityReport(
             tasks=statuses,
             safe_mode=safe,
             strictness_suspended=suspended,
             notes=tuple(notes),
-            level_costs=() if solution is None else tuple(lv.cost for lv in solution.levels),
+            level_costs=costs,
         )
         t5 = clock()
         self.last_t = float(t)
         self.last_tau = tau
         self.last_built = built
-        self.last_solution = solution
         timings = {"update": t1 - t0, "rows": t2 - t1, "solve": t3 - t2, "torques": t4 - t3,
                    "report": t5 - t4, "total": t5 - t0}
         return Command(tau=tau, qdd=qdd, wrenches=wrenches, report=report, safe_mode=safe,
                        timings=timings, t=float(t))
+
+    def _solve_built(
+        self, built: BuiltStack, t: float, notes: list[str]
+    ) -> tuple[np.ndarray, np.ndarray] | None:
+        """Solve the built levels: ``(x, tau)``, or ``None`` (reason in ``notes``) for safe mode.
+
+        The step skeleton of :meth:`step` is shared by every controller; this hook and
+        :meth:`_feasibility` are what a controller (HQP here, the null-space law in
+        :mod:`hqp.nullspace`) changes.
+        """
+        from hqp.errors import HQPError
+
+        self.last_solution = None
+        try:
+            self.last_solution = self.solver.solve(
+                built.levels, final_metric=self.final_metric, final_target=self.final_target
+            )
+        except HQPError as exc:
+            notes.append(f"solve failed: {exc}")
+            logger.warning("t=%.4f: solve failed (%s); safe command sent", t, exc)
+            return None
+        x = self.last_solution.x
+        if not np.all(np.isfinite(x)):
+            notes.append("solver returned non-finite values")
+            logger.warning("t=%.4f: non-finite solution; safe command sent", t)
+            return None
+        tau = self.torques(x)
+        if not np.all(np.isfinite(tau)):
+            notes.append("non-finite torques")
+            return None
+        return x, tau
+
+    def _feasibility(
+        self, built: BuiltStack, x: np.ndarray | None, notes: list[str]
+    ) -> tuple[tuple[TaskStatus, ...], tuple[float, ...]]:
+        """Per-task statuses and per-level costs of the step (``x`` is ``None`` in safe mode)."""
+        solution = self.last_solution
+        if solution is None:
+            return (), ()
+        statuses = () if x is None else self._statuses(built, solution)
+        return statuses, tuple(lv.cost for lv in solution.levels)
 
     def _relayout(self) -> None:
         from hqp.layout import Layout
@@ -492,13 +516,7 @@ class WholeBodyController(Controller):
 
         The model must be updated at the state the solution was computed for.
         """
-        m = self.model
-        act = m.actuated
-        tau = m.M[act] @ x[: self.layout.nv] + m.h[act]
-        for slot in self.layout.contacts:
-            J = m.frame_jacobian(slot.frame)[: slot.size]
-            tau -= J[:, act].T @ x[slot.slice]
-        return tau
+        return joint_torques(self.model, self.layout, x)
 
     def safe_command(self) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
         """Compute the safe command: gravity and contact compensation with joint damping.

@@ -164,8 +164,8 @@ import scipy.linalg as sla
 from hqp.errors import InvalidInput, check_array
 
 if TYPE_CHECKING:
-    from hqp.controller import Command, Controller, TaskStatus
-    from hqp.model import RobotModel, RobotState
+    from hqp.controller import Controller, TaskStatus
+    from hqp.model import RobotModel
     from hqp.robots import Robot
     from hqp.stack import BuiltStack, Stack
     from hqp.tasks.base import Task
@@ -777,39 +777,19 @@ class NullSpaceController(_controller_base()):  # type: ignore[misc]
 
     # -- one step ---------------------------------------------------------------------------
 
-    def step(self, state: RobotState, t: float) -> Command:
-        """One control step: update, rows, the law, torques, feasibility report.
+    def _solve_built(
+        self, built: BuiltStack, t: float, notes: list[str]
+    ) -> tuple[np.ndarray, np.ndarray] | None:
+        """Apply the law to the built stack: ``(x, tau)``, or ``None`` for the safe command.
 
-        Args:
-            state: Measured state (``q`` ``(nq,)``, ``v`` ``(nv,)``, pinocchio convention).
-            t: Control time [s].
-
-        Returns:
-            The command; ``safe_mode`` when the law failed or gave non-finite values.
-
-        Raises:
-            InvalidInput: The state has the wrong shape or holds NaN or inf.
-
+        The rest of the step (update, rows, safe command, blending, clipping) is
+        :meth:`WholeBodyController.step`, shared with the HQP controller.
         """
-        from hqp.controller import Command, FeasibilityReport
         from hqp.errors import HQPError
 
-        clock = time.perf_counter
-        c0 = clock()
         m = self.model
-        m.update(state.q, state.v)
-        c1 = clock()
-        x_prev = self.last_x
-        if [(c.name, c.frame, c.kind) for c in self.layout.contacts] != (
-            self.stack.layout_contacts()
-        ):
-            self._relayout()
-            x_prev = None
-        built = self.stack.build(m, self.layout, self.dt, t, x_prev)
-        problem = law_problem(built, self.stack, m.nv)
-        c2 = clock()
-        notes: list[str] = []
-        law = None
+        self.last_law = None
+        self.last_problem = problem = law_problem(built, self.stack, m.nv)
         try:
             law = prioritized_torques(
                 m.M, m.h, problem.levels,
@@ -820,47 +800,23 @@ class NullSpaceController(_controller_base()):  # type: ignore[misc]
         except (HQPError, np.linalg.LinAlgError) as exc:
             notes.append(f"law failed: {exc}")
             logger.warning("t=%.4f: null-space law failed (%s); safe command sent", t, exc)
-        c3 = clock()
-        x = None
-        if law is not None and np.all(np.isfinite(law.tau)) and np.all(np.isfinite(law.qdd)):
-            x = self._decision_vector(law, problem)
-        elif law is not None:
-            notes.append("law returned non-finite values")
-        safe = x is None
-        if safe:
-            tau, qdd, wrenches = self.safe_command()
-            notes.append("safe mode: gravity and contact compensation with joint damping")
-            self.last_x = None
-        else:
-            assert x is not None and law is not None
-            tau = law.tau.copy()
-            qdd = law.qdd.copy()
-            wrenches = {c.name: x[c.slice].copy() for c in self.layout.contacts}
-            self.last_x = x.copy()
-        tau, suspended = self._blend(tau, t, notes)
-        if np.any(np.abs(tau) > m.tau_max + 1e-9):
-            tau = np.clip(tau, -m.tau_max, m.tau_max)
-            notes.append("command clipped to the model's torque limits")
-        c4 = clock()
-        statuses: tuple = ()
-        costs: tuple[float, ...] = ()
-        if not safe and law is not None and x is not None:
-            statuses = self._law_statuses(built, problem, law, x)
-            costs = tuple(_level_cost(level, x) for level in built.levels)
-            notes.extend(problem.skipped)
-        report = FeasibilityReport(tasks=statuses, safe_mode=safe,
-                                   strictness_suspended=suspended, notes=tuple(notes),
-                                   level_costs=costs)
-        c5 = clock()
-        self.last_t = float(t)
-        self.last_tau = tau
-        self.last_built = built
+            return None
         self.last_law = law
-        self.last_problem = problem
-        timings = {"update": c1 - c0, "rows": c2 - c1, "solve": c3 - c2, "torques": c4 - c3,
-                   "report": c5 - c4, "total": c5 - c0}
-        return Command(tau=tau, qdd=qdd, wrenches=wrenches, report=report, safe_mode=safe,
-                       timings=timings, t=float(t))
+        if not (np.all(np.isfinite(law.tau)) and np.all(np.isfinite(law.qdd))):
+            notes.append("law returned non-finite values")
+            return None
+        return self._decision_vector(law, problem), law.tau.copy()
+
+    def _feasibility(
+        self, built: BuiltStack, x: np.ndarray | None, notes: list[str]
+    ) -> tuple[tuple[TaskStatus, ...], tuple[float, ...]]:
+        """Statuses from the law's eigenvalues (eq. 22) and level costs at the law's ``x``."""
+        law, problem = self.last_law, self.last_problem
+        if x is None or law is None or problem is None:
+            return (), ()
+        statuses = self._law_statuses(built, problem, law, x)
+        notes.extend(problem.skipped)
+        return statuses, tuple(_level_cost(level, x) for level in built.levels)
 
     def _decision_vector(self, law: LawSolution, problem: _LawProblem) -> np.ndarray:
         """``x = [qdd | wrenches]`` of the law: support forces mapped to the active slots."""

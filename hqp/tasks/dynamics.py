@@ -125,8 +125,12 @@ def joint_torques(state: RobotModel, layout: Layout, x: np.ndarray) -> np.ndarra
     from hqp.errors import check_array
 
     x = check_array(x, (layout.n,), "joint_torques: x")
-    T, t0 = torque_map(state, layout)
-    return T @ x + t0
+    act = state.actuated
+    tau = state.M[act] @ x[: layout.nv] + state.h[act]
+    for slot in layout.contacts:  # no (na, n) matrix: this runs once per servo step
+        J = state.frame_jacobian(slot.frame)[: slot.size]
+        tau -= J[:, act].T @ x[slot.slice]
+    return tau
 
 
 class FloatingBaseDynamics(Task):
