@@ -54,6 +54,12 @@ class ContactReading:
     cop: np.ndarray
 
 
+SEAT_DEPTH = 5e-5
+"""Depth [m] the feet start below the floor on a default :meth:`Simulator.reset`: about
+the robots' equilibrium sink standing (0.03-0.06 mm), so both soles are in contact from
+the first step."""
+
+
 class Simulator:
     """A MuJoCo simulation of a bundled robot driven by joint torques.
 
@@ -148,7 +154,15 @@ class Simulator:
         """Reset to a state (default: the robot's standing configuration at rest), time 0."""
         mujoco = self._mujoco
         mujoco.mj_resetData(self.mj_model, self.mj_data)
-        q = self.robot.q_standing if q is None else check_array(q, (self.nq,), "Simulator: q")
+        if q is None:
+            # The standing configuration puts the soles exactly on the floor, so round-off
+            # decides whether MuJoCo sees a contact (paper-humanoid's right sole was 1e-17 m
+            # above it: no contact on the first step, and the controller's first torques
+            # spun the unsupported ankle to 2.3 rad/s in 1 ms). Seat the feet instead.
+            q = np.array(self.robot.q_standing, dtype=float)
+            q[2] -= SEAT_DEPTH
+        else:
+            q = check_array(q, (self.nq,), "Simulator: q")
         v = np.zeros(self.nv) if v is None else check_array(v, (self.nv,), "Simulator: v")
         self.set_state(q, v)
         self.clip_count = 0
