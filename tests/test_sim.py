@@ -18,6 +18,7 @@ from hqp.sim import (
     rendering_available,
     simulate,
 )
+from hqp.sim.simulator import SEAT_DEPTH
 from hqp.tasks.base import Category
 from hqp.tasks.position import PositionTask
 
@@ -54,8 +55,11 @@ def test_simulator_state_round_trip_and_sensing():
     np.testing.assert_allclose(st.q, q, atol=1e-12)
     np.testing.assert_allclose(st.v, v, atol=1e-12)
     sim.reset()
-    np.testing.assert_allclose(sim.contacts().foot_position[:, 2], 0.0, atol=1e-6)
-    for _ in range(5):  # soles resting exactly on the floor: let the soft contacts engage
+    # seated: both soles touch the floor from the first step (round-off used to leave one
+    # sole 1e-17 m above it, without contact)
+    np.testing.assert_allclose(sim.contacts().foot_position[:, 2], -SEAT_DEPTH, atol=1e-6)
+    assert sim.contacts().foot_contact.all()
+    for _ in range(5):
         sim.step(np.zeros(sim.na))
     reading = sim.contacts()
     assert reading.foot_contact.all() and reading.other_contact == ()
@@ -97,7 +101,9 @@ def test_passive_robot_falls_and_is_detected():
 
             return Command(np.zeros(self.na), np.zeros(self.na + 6), {}, FeasibilityReport())
 
-    log = simulate(r, Limp(r.model().na), 3.0)
+    # limp, the robot folds symmetrically onto MuJoCo's joint stops (pelvis ~0.57 m, above
+    # the fall height); a 10 N s push topples it
+    log = simulate(r, Limp(r.model().na), 3.0, [Push(0.1, (100.0, 0.0, 0.0), 0.1)])
     assert log.fell and log.fell_at < 3.0
     assert log.t[-1] == pytest.approx(log.fell_at)
 
