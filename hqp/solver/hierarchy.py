@@ -62,17 +62,17 @@ from hqp.errors import (
     UnknownName,
     check_array,
 )
+from hqp.solver.active_set import Guess, guess_from_point, solve_guess
 from hqp.solver.backend import QPBackend, make_backend
 from hqp.solver.level import CheckedLevel, Level, check_level
+from hqp.solver.linalg import PivotedQR as _PivotedQR
+from hqp.solver.linalg import singular_values as _singular_values
 from hqp.solver.solution import ROW_TOL, SATISFIED_COST, LevelReport, Solution
 
 logger = logging.getLogger(__name__)
 
 _dgeqp3 = lapack.dgeqp3
-_dgeqrf = lapack.dgeqrf
 _dorgqr = lapack.dorgqr
-_dtrtrs = lapack.dtrtrs
-_dgels = lapack.dgels
 _ZERO = np.zeros(0)
 _NO_ROWS = np.zeros(0, dtype=int)
 
@@ -96,6 +96,13 @@ whole-body stacks: friction-cone, torque and joint-limit rows). A lower level
 can move such a row by at most this margin, i.e. raise the level's cost by at
 most ``2 v m + m^2`` per row with ``v < FIX_TOL`` its violation, far inside the
 contract's ``1e-6`` tolerance."""
+
+ACTIVE_TOL = 1e-7
+"""A carried row within this (times ``max(1, |bound|)``) of a bound at a
+backend's QP point is held at that bound in the polishing solve."""
+
+POLISH_ITER = 2
+"""Active-set updates tried when polishing a backend's QP point."""
 
 ALGORITHMS = ("basis", "cascade")
 """Names of the lexicographic algorithms."""
@@ -251,6 +258,11 @@ class HierarchicalSolver:
         compute_sigma: Compute ``sigma_min`` in the reports (``nan`` otherwise). The
             basis algorithm reuses its projections (one small factorisation per
             level with active rows); the cascade recomputes the projections.
+        warm_start: Before a level's QP, try the active set of the previous solve of
+            that level (or, cold, of the least-squares point) and accept it only if
+            the optimality conditions hold (:mod:`hqp.solver.active_set`); after a
+            backend's QP, re-solve exactly on its active set when that verifies.
+            Both algorithms use it alike.
 
     Raises:
         UnknownBackend: Unknown or uninstalled backend.
@@ -265,6 +277,7 @@ class HierarchicalSolver:
         algorithm: str = "basis",
         rank_tol: float = 1e-9,
         compute_sigma: bool = True,
+        warm_start: bool = True,
     ) -> None:
         if algorithm not in ALGORITHMS:
             raise UnknownName("algorithm", str(algorithm), ALGORITHMS)
@@ -272,12 +285,34 @@ class HierarchicalSolver:
         self.backend_name = backend
         self.algorithm = algorithm
         self.compute_sigma = compute_sigma
+        self.warm_start = bool(warm_start)
         self._backend: QPBackend = make_backend(backend)
+        self._guesses: dict[Any, tuple[np.ndarray, np.ndarray]] = {}
+        self._points: dict[Any, np.ndarray] = {}
 
     def reset(self) -> None:
         """Forget the persistent QPs (the next solve starts cold)."""
         self._backend.reset()
         self._backend.__dict__.pop("_hqp_relaxed", None)
+        self._guesses.clear()
+        self._points.clear()
+
+    def _guess(self, slot: Any, mi: int, gid: np.ndarray, total_in: int) -> Guess | None:
+        """Return the active set of the slot's previous solve, if the hierarchy's shapes held."""
+        memo = self._guesses.get(slot)
+        if memo is None or memo[0].size != mi or memo[1].size != total_in:
+            return None
+        point = self._points.get(slot)
+        if point is None or point.shape != (self._n,):
+            return None
+        return Guess(memo[0], memo[1][gid])
+
+    def _remember(self, slot: Any, guess: Guess, gid: np.ndarray, total_in: int) -> None:
+        """Keep the slot's active set (carried rows by their index in the hierarchy)."""
+        wmap = np.zeros(total_in, dtype=np.int8)
+        if gid.size:
+            wmap[gid] = guess.w
+        self._guesses[slot] = (guess.s, wmap)
 
     def solve(
         self,
@@ -310,6 +345,7 @@ class HierarchicalSolver:
         checked, n = _check_levels(levels, n_hint)
         internal = _final_levels(n, final_metric, final_target)
         all_levels = [(lv, _Internal.NONE) for lv in checked] + internal
+        self._n = n
         if self.algorithm == "basis":
             x, sigmas, qp_count, times = self._solve_basis(all_levels, n)
         else:
@@ -353,6 +389,12 @@ class HierarchicalSolver:
         gu = np.zeros(0)
         gls = np.zeros(0)  # their tolerance scales
         gus = np.zeros(0)
+        gid = _NO_ROWS  # their index among all inequality rows of the hierarchy
+        total_in = 0
+        offsets = []
+        for lv, _kind in all_levels:
+            offsets.append(total_in)
+            total_in += lv.m_in
         pending: list[tuple[CheckedLevel, Any, Any, Any]] = []
         times: list[float] = []
         qp_count = 0
@@ -393,38 +435,80 @@ class HierarchicalSolver:
                 feasible = _within(G @ xl, gl, gu, gls, gus)
             violated = None
             if not feasible:
-                # 3. QP in the reduced coordinates (and the level's slacks)
-                qp_count += 1
                 Gk = G if Z is None else G @ Z
                 gx = G @ x
-                H11 = Ak.T @ Ak
-                g1 = Ak.T @ bk
-                np.negative(g1, out=g1)
-                if mi == 0:
-                    y, ok = _qp(backend, k, H11, g1, None, None,
-                                          Gk if carried else None,
-                                          gl - gx if carried else None,
-                                          gu - gx if carried else None)
-                else:
-                    Ck = C if Z is None else C @ Z
-                    nv = r + mi
-                    p = G.shape[0]
-                    H = np.zeros((nv, nv))
-                    H[:r, :r] = H11
-                    dg = np.arange(r, nv)
-                    H[dg, dg] = 1.0
-                    g = np.zeros(nv)
-                    g[:r] = g1
-                    Cq = np.zeros((mi + p, nv))
-                    Cq[:mi, :r] = Ck
-                    Cq[np.arange(mi), dg] = -1.0
-                    if carried:
-                        Cq[mi:, :r] = Gk
-                    cx0 = C @ x
-                    lo = np.concatenate((lv.lower - cx0, gl - gx))
-                    up = np.concatenate((lv.upper - cx0, gu - gx))
-                    v, ok = _qp(backend, k, H, g, None, None, Cq, lo, up)
-                    y = v[:r]
+                Ck = C if Z is None else C @ Z
+                cx0 = C @ x
+                lo_r = lv.lower - cx0
+                up_r = lv.upper - cx0
+                glr = gl - gx
+                gur = gu - gx
+                scale = max(lv.a_scale, lv.c_scale)
+                # 3a. the previous solve's active set (or the least-squares point's),
+                # verified by the optimality conditions
+                y = None
+                if self.warm_start:
+                    guess = self._guess(k, mi, gid, total_in)
+                    if guess is None:
+                        # cold: the least-squares point's violated rows
+                        ref = xl - x if Z is None else Z.T @ (xl - x)
+                        guess = guess_from_point(Ck @ ref if mi else None, lo_r, up_r,
+                                                 lv.lo_scale, lv.up_scale,
+                                                 Gk @ ref if carried else None, glr, gur,
+                                                 gls, gus, -FEAS_TOL)
+                    else:
+                        # warm: closest to the previous solve's point of this level
+                        dx = self._points[k] - x
+                        ref = dx if Z is None else Z.T @ dx
+                    y, guess, _its = solve_guess(
+                        Ak, bk, Ck, lo_r, up_r, lv.lo_scale, lv.up_scale, None, None,
+                        Gk if carried else None, glr, gur, gls, gus, guess, rank_tol, scale,
+                        ref=ref)
+                ok = True
+                if y is None:
+                    # 3b. QP in the reduced coordinates (and the level's slacks)
+                    qp_count += 1
+                    H11 = Ak.T @ Ak
+                    g1 = Ak.T @ bk
+                    np.negative(g1, out=g1)
+                    if mi == 0:
+                        y, ok = _qp(backend, k, H11, g1, None, None,
+                                    Gk if carried else None,
+                                    glr if carried else None,
+                                    gur if carried else None)
+                    else:
+                        nv = r + mi
+                        p = G.shape[0]
+                        H = np.zeros((nv, nv))
+                        H[:r, :r] = H11
+                        dg = np.arange(r, nv)
+                        H[dg, dg] = 1.0
+                        g = np.zeros(nv)
+                        g[:r] = g1
+                        Cq = np.zeros((mi + p, nv))
+                        Cq[:mi, :r] = Ck
+                        Cq[np.arange(mi), dg] = -1.0
+                        if carried:
+                            Cq[mi:, :r] = Gk
+                        lo = np.concatenate((lo_r, glr))
+                        up = np.concatenate((up_r, gur))
+                        v, ok = _qp(backend, k, H, g, None, None, Cq, lo, up)
+                        y = v[:r]
+                    if self.warm_start and np.isfinite(y).all():
+                        # polish: the QP point's active set, solved exactly if it verifies
+                        guess = guess_from_point(Ck @ y if mi else None, lo_r, up_r,
+                                                 lv.lo_scale, lv.up_scale,
+                                                 Gk @ y if carried else None, glr, gur,
+                                                 gls, gus, ACTIVE_TOL)
+                        yp, guess2, _its = solve_guess(
+                            Ak, bk, Ck, lo_r, up_r, lv.lo_scale, lv.up_scale, None, None,
+                            Gk if carried else None, glr, gur, gls, gus, guess, rank_tol,
+                            scale, max_iter=POLISH_ITER, ref=y)
+                        if yp is not None:
+                            y, guess, ok = yp, guess2, True
+                if self.warm_start:
+                    self._remember(k, guess, gid, total_in)
+                    self._points[k] = x + (y if Z is None else Z @ y)
                 if not ok:
                     logger.debug("level %d: backend %s did not converge", k, backend.name)
                 if not np.isfinite(y).all():
@@ -463,6 +547,7 @@ class HierarchicalSolver:
                     gu = np.concatenate((gu, np.maximum(lv.upper[keep], ck) + CARRY_MARGIN * us))
                     gls = np.concatenate((gls, ls))
                     gus = np.concatenate((gus, us))
+                    gid = np.concatenate((gid, offsets[k] + np.flatnonzero(keep)))
             if kind == _Internal.NONE:
                 pending.append((lv, Ak, Zb, fact))
             times.append(clock() - t0)
@@ -731,83 +816,6 @@ def _sigma_level(
         s = _singular_values(Ak)
         scale = lv.a_scale
     return _mth_singular(s, m, r, rank_tol * max(float(s[0]) if s.size else 0.0, scale))
-
-
-def _singular_values(M: np.ndarray) -> np.ndarray:
-    """Singular values of an ``(m, r)`` matrix with ``m <= r``, largest first.
-
-    Computed from the ``(m, m)`` triangular factor of ``M^T`` (same singular
-    values), which is much cheaper than an SVD of ``M`` when ``m << r``.
-    """
-    m = M.shape[0]
-    if m == 0:
-        return _ZERO
-    qr, _tau, _work, info = _dgeqrf(np.asfortranarray(M.T))
-    return np.linalg.svd(np.triu(qr[:m, :m]), compute_uv=False)
-
-
-class _PivotedQR:
-    """Rank-revealing QR of a projected level matrix ``M`` ``(m, r)``: ``M^T P = Q R``.
-
-    Rank: the number of ``|R_ii|`` above ``rank_tol * max(|R_00|, scale)``;
-    ``|R_00|`` is the largest row norm of ``M``, within ``sqrt(m)`` of its
-    largest singular value, and ``scale`` the largest entry of the level's
-    unprojected rows (so rows that the levels above already fixed count as zero).
-    """
-
-    __slots__ = ("M", "qr", "piv", "tau", "rank", "_Q")
-
-    def __init__(self, M: np.ndarray, rank_tol: float, scale: float) -> None:
-        self.M = M
-        qr, jpvt, tau, _work, info = _dgeqp3(np.asfortranarray(M.T))
-        self.qr = qr
-        self.piv = jpvt - 1
-        self.tau = tau
-        d = np.abs(np.diagonal(qr))
-        top = max(float(d[0]) if d.size else 0.0, scale)
-        self.rank = int(np.count_nonzero(d > rank_tol * top))
-        self._Q: np.ndarray | None = None
-
-    def Q(self) -> np.ndarray:
-        """Full orthogonal factor ``(r, r)``."""
-        if self._Q is None:
-            r, m = self.qr.shape
-            if m >= r:
-                a = np.array(self.qr[:, :r], order="F")
-                tau = self.tau
-            else:
-                a = np.zeros((r, r), order="F")
-                a[:, :m] = self.qr
-                tau = np.zeros(r)
-                tau[: self.tau.size] = self.tau
-            self._Q = _dorgqr(a, tau)[0]
-        return self._Q
-
-    def null(self) -> np.ndarray:
-        """Orthonormal basis ``(r, r - rank)`` of the null space of ``M``."""
-        return self.Q()[:, self.rank:]
-
-    def lstsq(self, rhs: np.ndarray) -> np.ndarray:
-        """Solve ``M y = rhs`` in the least-squares sense (minimum norm up to the rank cut)."""
-        k = self.rank
-        r = self.qr.shape[0]
-        if k == 0:
-            return np.zeros(r)
-        rp = rhs[self.piv]
-        if self.qr.shape[1] == k:
-            # square lower-triangular R^T: one triangular solve
-            z = _dtrtrs(self.qr[:k, :k], rp, trans=1)[0]
-        else:
-            # more rows than rank: least squares on the (m, k) trapezoid R[:k]^T
-            L = np.tril(self.qr[:k, :].T)
-            z = _dgels(L, rp)[1][:k]
-        return self.Q()[:, :k] @ z
-
-    def singular_values(self) -> np.ndarray:
-        """Singular values of ``M`` (those of ``R``), largest first."""
-        m = self.qr.shape[1]
-        R = np.triu(self.qr[: min(m, self.qr.shape[0]), :])
-        return np.linalg.svd(R, compute_uv=False)
 
 
 def _report(lv: CheckedLevel, x: np.ndarray, sigma: float) -> LevelReport:

@@ -61,6 +61,8 @@ class CheckedLevel:
     """Rows with at least one finite bound."""
     a_scale: float = 0.0
     """Largest absolute entry of ``A`` (0 without equality rows)."""
+    c_scale: float = 0.0
+    """Largest absolute entry of ``C`` (0 without inequality rows)."""
 
     @property
     def m_eq(self) -> int:
@@ -204,7 +206,8 @@ def check_level(level: Any, k: int, n: int | None) -> CheckedLevel:
         up_s = np.clip(np.abs(upper), 1.0, 1e300)
         bounded = (lower > -np.inf) | (upper < np.inf)
     a_scale = float(np.abs(A).max()) if A.shape[0] and A.shape[1] else 0.0
-    return CheckedLevel(A, b, C, lower, upper, name, lo_s, up_s, bounded, a_scale)
+    c_scale = float(np.abs(C).max()) if C.shape[0] and C.shape[1] else 0.0
+    return CheckedLevel(A, b, C, lower, upper, name, lo_s, up_s, bounded, a_scale, c_scale)
 
 
 _EMPTY = np.zeros(0)

@@ -26,6 +26,9 @@ class QuadprogBackend(QPBackend):
     def solve(self, slot, H, g, E, e, C, lo, up):  # noqa: D102 - documented in the base
         G, h = one_sided(C, lo, up)
         has_eq = E is not None and E.shape[0] > 0
+        v = self._proximal(H, g, G, h, E if has_eq else None, e if has_eq else None)
+        if v is not None:
+            return v, True
         for rel in REGULARIZATION_SEQUENCE:
             problem = qpsolvers.Problem(
                 _regularized(H, rel), g, G, h, E if has_eq else None, e if has_eq else None)
@@ -36,6 +39,62 @@ class QuadprogBackend(QPBackend):
             if sol.found and sol.x is not None:
                 return np.asarray(sol.x, dtype=float), True
         return np.full(H.shape[0], np.nan), False
+
+
+    @staticmethod
+    def _proximal(H, g, G, h, E, e):
+        """Proximal-point iterations ``min f(v) + rho/2 ||v - v_k||^2`` (``None`` on failure).
+
+        quadprog works with ``H^{-1}``: on a level whose reduced Hessian is
+        singular (an inequality-only level: zero block on the reduced
+        coordinates), a tiny regularisation makes its dual steps lose about
+        ``cond(H) * eps`` of accuracy, and it then reports success at points
+        whose cost is far from optimal (the ``screwgun`` and ``reach`` real
+        problems). With ``rho`` of the order of ``H``'s scale each subproblem is
+        well conditioned, and the iterates converge to an exact minimiser of
+        ``f`` (no bias): the iteration stops when a step moves ``v`` by less than
+        :data:`PROX_STEP_TOL` (relative).
+        """
+        scale = max(1.0, float(np.max(np.diag(H)))) if H.size else 1.0
+        rho = PROX_RHO * scale
+        Hr = H.copy()
+        Hr[np.diag_indices_from(Hr)] += rho
+        v = np.zeros(H.shape[0])
+        hs = None if h is None else h + PROX_RELAX * np.maximum(1.0, np.abs(h))
+        for _ in range(PROX_MAX_ITER):
+            sol = None
+            for hh in (h, hs):
+                # quadprog's dual steps can declare a feasible set only ~1e-9 thick
+                # infeasible: then the bounds relaxed by PROX_RELAX
+                try:
+                    sol = qpsolvers.solve_problem(
+                        qpsolvers.Problem(Hr, g - rho * v, G, hh, E, e), solver="quadprog")
+                except (qpsolvers.ProblemError, ValueError):
+                    return None
+                if sol.found and sol.x is not None and np.isfinite(sol.x).all():
+                    break
+                if hh is None:
+                    return None
+            if sol is None or not sol.found or sol.x is None or not np.isfinite(sol.x).all():
+                return None
+            step = float(np.abs(sol.x - v).max())
+            v = np.asarray(sol.x, dtype=float)
+            if step <= PROX_STEP_TOL * max(1.0, float(np.abs(v).max())):
+                return v
+        return None
+
+
+PROX_RHO = 1e-2
+"""Proximal weight relative to ``max(1, max diag H)`` (the hierarchy normalises ``H``)."""
+
+PROX_RELAX = 1e-9
+"""Relative relaxation of the bounds when quadprog reports a thin feasible set infeasible."""
+
+PROX_STEP_TOL = 1e-11
+"""Relative step below which the proximal iterations have converged."""
+
+PROX_MAX_ITER = 200
+"""Proximal iterations before falling back to the regularised single solve."""
 
 
 def _regularized(H: np.ndarray, rel: float) -> np.ndarray:

@@ -1,0 +1,303 @@
+"""Active-set warm start of one level problem, verified by its optimality conditions.
+
+Both lexicographic algorithms solve, at every level, a problem of the form
+
+    min_v  ||A v - b||^2 + ||dist(C v, [lo, up])||^2
+    s.t.   E v = e,   gl <= G v <= gu
+
+(the basis algorithm in the reduced coordinates ``v = y`` of the optimal set
+above, without ``E``; the cascade over the full ``x`` with the held equality
+rows as ``E``). Given a *guess* of its active set, namely
+
+- ``s`` per level row: ``+1`` the row is violated above (its slack cost is
+  ``(C_i v - up_i)^2``), ``-1`` violated below, ``0`` inside its band, and
+- ``w`` per carried row: ``+1`` held at ``gu``, ``-1`` held at ``gl``, ``0`` free,
+
+the problem becomes an equality-constrained least-squares problem, solved
+exactly here by a null-space method (pivoted QR of the active constraint
+rows, then least squares in their null space). The point is accepted only if
+it satisfies the problem's optimality (KKT) conditions: rows guessed inside
+their band are inside it, rows guessed violated are violated on the guessed
+side (their slack multiplier is their violation), free carried rows are
+within their bounds and held carried rows have multipliers of the right
+sign. The problem is convex, so such a point is an exact minimiser.
+
+When the guess fails, the guess is updated as in a primal-dual active-set
+method (violated rows enter, rows with wrong-sign multipliers leave, level
+rows take the side of their violation) for a few iterations; if none is
+accepted, the caller solves the level's QP with its backend. The guess comes
+from the previous solve of the same level (Escande, Mansard, Wieber, IJRR
+2014, warm start of the hierarchical active set: the QPs of a control loop
+change little between 1 ms steps, so the previous active set is usually the
+optimal one), or, cold, from the least-squares point.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from hqp.solver.linalg import PivotedQR, _dtrtrs
+
+FEAS_TOL = 1e-9
+"""Primal tolerance (times ``max(1, |bound|)``), as in the hierarchy's checks."""
+
+DUAL_TOL = 1e-9
+"""Dual tolerance on the multipliers of held carried rows, relative to the
+scale of the cost's gradient (``max |M| * max(1, max |d|)`` for the stacked
+least-squares rows ``M v ~ d``). Accepting a multiplier of ``-DUAL_TOL`` times
+that scale leaves the level's cost at most that much times the distance to
+the next bound above its optimum, inside the contract's ``1e-6``."""
+
+MAX_ITER = 6
+"""Active-set updates tried after the first guess before the backend QP."""
+
+CONSISTENCY_TOL = 1e-9
+"""Held rows that the QR finds dependent must be consistent to this
+(times ``max(1, |bound|)``), else the guess is rejected."""
+
+
+class Guess:
+    """An active-set guess: ``s`` over the level rows, ``w`` over the carried rows (int8)."""
+
+    __slots__ = ("s", "w")
+
+    def __init__(self, s: np.ndarray, w: np.ndarray) -> None:
+        self.s = s
+        self.w = w
+
+
+def solve_guess(
+    A: np.ndarray,
+    b: np.ndarray,
+    C: np.ndarray,
+    lo: np.ndarray,
+    up: np.ndarray,
+    los: np.ndarray,
+    ups: np.ndarray,
+    E: np.ndarray | None,
+    e: np.ndarray | None,
+    G: np.ndarray | None,
+    gl: np.ndarray | None,
+    gu: np.ndarray | None,
+    gls: np.ndarray | None,
+    gus: np.ndarray | None,
+    guess: Guess,
+    rank_tol: float,
+    scale: float,
+    max_iter: int = MAX_ITER,
+    ref: np.ndarray | None = None,
+) -> tuple[np.ndarray | None, Guess, int]:
+    """Solve the level problem from an active-set guess; ``None`` if no guess verifies.
+
+    Args:
+        A: Least-squares rows ``(ma, nv)``.
+        b: Their targets ``(ma,)``.
+        C: Level inequality rows ``(mc, nv)``.
+        lo: Their lower bounds ``(mc,)`` (``-inf`` allowed).
+        up: Their upper bounds ``(mc,)`` (``+inf`` allowed).
+        los: Tolerance scales ``max(1, |lo|)`` ``(mc,)``.
+        ups: Tolerance scales ``max(1, |up|)`` ``(mc,)``.
+        E: Hard equality rows ``(me, nv)`` or ``None``.
+        e: Their right-hand side ``(me,)`` or ``None``.
+        G: Carried inequality rows ``(p, nv)`` or ``None``.
+        gl: Their lower bounds ``(p,)``.
+        gu: Their upper bounds ``(p,)``.
+        gls: Tolerance scales of ``gl``.
+        gus: Tolerance scales of ``gu``.
+        guess: Initial guess (``s`` ``(mc,)``, ``w`` ``(p,)``).
+        rank_tol: Relative rank threshold of the factorisations.
+        scale: Largest entry of the level's unprojected rows (rank decisions).
+        max_iter: Guess updates tried after the first.
+        ref: Reference point ``(nv,)``: where the least-squares rows leave
+            directions free, the minimiser closest to it is taken (``None``:
+            the minimum-norm one). The previous solve's point keeps rows that
+            were inside their bands inside them on semidefinite levels.
+
+    Returns:
+        ``(v, guess, iterations)``: the verified minimiser ``(nv,)`` (or ``None``),
+        the last guess (the verified one when ``v`` is not ``None``) and the
+        number of equality-constrained solves.
+
+    """
+    nv = A.shape[1]
+    s = guess.s
+    w = guess.w
+    p = 0 if G is None else G.shape[0]
+    mc = C.shape[0]
+    me = 0 if E is None else E.shape[0]
+    tl = FEAS_TOL * los if mc else None
+    tu = FEAS_TOL * ups if mc else None
+    ptl = FEAS_TOL * gls if p else None
+    ptu = FEAS_TOL * gus if p else None
+    if mc and s.any():
+        # a stale guess may hold a row at an infinite bound
+        s = np.where(((s > 0) & (up == np.inf)) | ((s < 0) & (lo == -np.inf)), 0, s).astype(
+            np.int8)
+    if p and w.any():
+        w = np.where(((w > 0) & (gu == np.inf)) | ((w < 0) & (gl == -np.inf)), 0, w).astype(
+            np.int8)
+    seen: set[bytes] = set()
+    for it in range(max_iter + 1):
+        key = s.tobytes() + w.tobytes()
+        if key in seen:
+            break  # cycling
+        seen.add(key)
+        # stacked least-squares rows M v ~ d and held rows K v = k
+        if mc and s.any():
+            sel = s != 0
+            M = np.concatenate((A, C[sel]))
+            d = np.concatenate((b, np.where(s[sel] > 0, up[sel], lo[sel])))
+        else:
+            M, d = A, b
+        held = w != 0 if p else None
+        nheld = int(np.count_nonzero(held)) if p else 0
+        if me or nheld:
+            if nheld:
+                Gh = G[held]
+                kh = np.where(w[held] > 0, gu[held], gl[held])
+                khs = np.where(w[held] > 0, gus[held], gls[held])
+                K = Gh if not me else np.concatenate((E, Gh))
+                k = kh if not me else np.concatenate((e, kh))
+                ks = khs if not me else np.concatenate((np.maximum(1.0, np.abs(e)), khs))
+            else:
+                K, k, ks = E, e, np.maximum(1.0, np.abs(e))
+            fk = PivotedQR(K, rank_tol, 0.0)
+            rk = fk.rank
+            Q = fk.Q()
+            piv = fk.piv
+            R11 = fk.qr[:rk, :rk]
+            if rk:
+                t = _dtrtrs(R11, k[piv[:rk]], lower=0, trans=1)[0]
+                vp = Q[:, :rk] @ t
+            else:
+                vp = np.zeros(nv)
+            if rk < K.shape[0]:
+                dep = piv[rk:]
+                if (np.abs(K[dep] @ vp - k[dep]) > CONSISTENCY_TOL * ks[dep]).any():
+                    return None, Guess(s, w), it + 1
+            Q2 = Q[:, rk:]
+            if M.shape[0] and Q2.shape[1]:
+                MQ = M @ Q2
+                rhs = d - M @ vp
+                if ref is None:
+                    z = PivotedQR(MQ, rank_tol, scale).lstsq(rhs)
+                else:
+                    zr = Q2.T @ ref
+                    z = zr + PivotedQR(MQ, rank_tol, scale).lstsq(rhs - MQ @ zr)
+                v = vp + Q2 @ z
+            elif Q2.shape[1] and ref is not None:
+                v = vp + Q2 @ (Q2.T @ ref)
+            else:
+                v = vp
+        else:
+            rk = 0
+            if M.shape[0]:
+                if ref is None:
+                    v = PivotedQR(M, rank_tol, scale).lstsq(d)
+                else:
+                    v = ref + PivotedQR(M, rank_tol, scale).lstsq(d - M @ ref)
+            else:
+                v = np.zeros(nv) if ref is None else ref.copy()
+        if not np.isfinite(v).all():
+            break
+        # primal checks and the next guess
+        ok = True
+        s_new = s
+        if mc:
+            cv = C @ v
+            out_up = cv > up + tu
+            out_lo = cv < lo - tl
+            inside = s == 0
+            inside_bad = inside & (out_up | out_lo)
+            up_bad = (s > 0) & (cv < up - tu)
+            lo_bad = (s < 0) & (cv > lo + tl)
+            if inside_bad.any() or up_bad.any() or lo_bad.any():
+                ok = False
+                # only the rows that fail their check change state
+                s_new = s.copy()
+                s_new[up_bad | lo_bad] = 0
+                s_new[inside & out_up] = 1
+                s_new[inside & out_lo] = -1
+        w_new = w
+        if p:
+            gv = G @ v
+            free = w == 0
+            over = free & (gv > gu + ptu)
+            under = free & (gv < gl - ptl)
+            wrong = None
+            if nheld and rk:
+                res = M @ v - d
+                grad = M.T @ res
+                mu_piv = _dtrtrs(R11, -(Q[:, :rk].T @ grad), lower=0)[0]
+                mu = np.zeros(K.shape[0])
+                mu[piv[:rk]] = mu_piv
+                mug = mu[me:]
+                wh = w[held]
+                dtol = DUAL_TOL * max(1.0, float(np.abs(M).max()) * max(1.0, float(
+                    np.abs(d).max()))) if M.size else DUAL_TOL
+                bad = ((wh > 0) & (mug < -dtol)) | ((wh < 0) & (mug > dtol))
+                if bad.any():
+                    wrong = np.flatnonzero(held)[bad]
+            if over.any() or under.any() or wrong is not None:
+                ok = False
+                w_new = w.copy()
+                w_new[over] = 1
+                w_new[under] = -1
+                if wrong is not None:
+                    w_new[wrong] = 0
+        if ok:
+            return v, Guess(s, w), it + 1
+        s = s_new
+        w = w_new
+    return None, Guess(s, w), len(seen)
+
+
+def guess_from_point(
+    cv: np.ndarray | None,
+    lo: np.ndarray,
+    up: np.ndarray,
+    los: np.ndarray,
+    ups: np.ndarray,
+    gv: np.ndarray | None,
+    gl: np.ndarray | None,
+    gu: np.ndarray | None,
+    gls: np.ndarray | None,
+    gus: np.ndarray | None,
+    active_tol: float,
+) -> Guess:
+    """Return the active set of a point (level rows by the side they violate, carried rows held).
+
+    Args:
+        cv: ``C v`` ``(mc,)`` (``None`` without level rows).
+        lo: Level lower bounds ``(mc,)``.
+        up: Level upper bounds ``(mc,)``.
+        los: Tolerance scales of ``lo``.
+        ups: Tolerance scales of ``up``.
+        gv: ``G v`` ``(p,)`` (``None`` without carried rows).
+        gl: Carried lower bounds ``(p,)``.
+        gu: Carried upper bounds ``(p,)``.
+        gls: Tolerance scales of ``gl``.
+        gus: Tolerance scales of ``gu``.
+        active_tol: A carried row within ``active_tol * scale`` of a bound is held.
+
+    """
+    if cv is None or cv.size == 0:
+        s = np.zeros(0, dtype=np.int8)
+    else:
+        # rows on a bound (within the tolerance) or beyond it: least-squares rows
+        s = (cv >= up - active_tol * ups).astype(np.int8) - (
+            cv <= lo + active_tol * los).astype(np.int8)
+        both = (s == 0) & (cv >= up - active_tol * ups)
+        if both.any():
+            s[both] = np.where(cv[both] >= 0.5 * (lo[both] + up[both]), 1, -1)
+    if gv is None or gv.size == 0:
+        w = np.zeros(0, dtype=np.int8)
+    else:
+        near_up = gv >= gu - active_tol * gus
+        near_lo = gv <= gl + active_tol * gls
+        w = near_up.astype(np.int8) - near_lo.astype(np.int8)
+        both = near_up & near_lo
+        if both.any():
+            # a slab thinner than the tolerance: held at the nearer bound
+            w[both] = np.where(gv[both] >= 0.5 * (gl[both] + gu[both]), 1, -1)
+    return Guess(s, w)
