@@ -96,10 +96,23 @@ def feet_contacts(robot: Robot, model: RobotModel) -> list[Task]:
     return out
 
 
+def braking_acceleration(robot: Robot, model: RobotModel) -> np.ndarray:
+    """Constant braking acceleration of the joint-limit bounds, per actuated joint [rad/s^2].
+
+    :data:`JOINT_LIMIT_MARGIN` of the support-aware single-joint estimate at the
+    standing posture; the HQP stack and PlaCo's ``qdd_safe`` use the same values.
+    """
+    from hqp.tasks.joint_limits import max_acceleration_from_torques
+
+    model.update(robot.q_standing, np.zeros(model.nv))
+    return max_acceleration_from_torques(model, margin=JOINT_LIMIT_MARGIN,
+                                         supports=list(robot.feet))
+
+
 def build_stack(robot: Robot, model: RobotModel, hierarchy: Hierarchy) -> Stack:
     """Constraint sub-levels, then the scenario's levels (module docstring)."""
     from hqp.tasks.dynamics import FloatingBaseDynamics
-    from hqp.tasks.joint_limits import JointLimits, max_acceleration_from_torques
+    from hqp.tasks.joint_limits import JointLimits
     from hqp.tasks.torque_limits import TorqueLimits
 
     names = [name for name, _ in hierarchy.levels]
@@ -107,10 +120,8 @@ def build_stack(robot: Robot, model: RobotModel, hierarchy: Hierarchy) -> Stack:
                    Category.COLLISION, *names])
     stack.add(FloatingBaseDynamics(), Category.PHYSICS)
     stack.add(TorqueLimits(), Category.CONTACT_LIMITS)
-    model.update(robot.q_standing, np.zeros(model.nv))
-    qdd_max = max_acceleration_from_torques(model, margin=JOINT_LIMIT_MARGIN,
-                                            supports=list(robot.feet))
-    stack.add(JointLimits(qdd_max=qdd_max, velocity_scale=JOINT_VELOCITY_SCALE),
+    stack.add(JointLimits(qdd_max=braking_acceleration(robot, model),
+                          velocity_scale=JOINT_VELOCITY_SCALE),
               Category.JOINT_LIMITS)
     for task in hierarchy.collision:
         stack.add(task, Category.COLLISION)

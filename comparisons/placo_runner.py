@@ -3,7 +3,8 @@
 :class:`PlacoController` loads the robot's URDF (``Robot.urdf_path``) in
 ``placo.RobotWrapper``, declares both soles as planar contacts (hard frame
 tasks, friction and centre-of-pressure limits), enables joint-position,
-velocity and torque limits (PlaCo's own inequalities), and maps the
+velocity and torque limits (PlaCo's own inequalities, with the braking
+acceleration and velocity fraction of the HQP stack), and maps the
 scenario's tasks onto PlaCo tasks:
 
 - centre of gravity (horizontal) -> ``DynamicsCoMTask`` with an ``xy`` mask;
@@ -21,10 +22,11 @@ priority of the hand over the posture cannot be expressed, and neither can
 the posture's normalising matrix ``W`` (a ``JointsTask`` has one weight for
 all its joints).
 
-The PD law of eq. 27-28 is reproduced exactly: PlaCo's task acceleration is
-``kp (x_target - x) + kd (v_target - v) + a_target``; hqp sets ``kp = 0``,
-``kd = kv`` and ``v_target`` to the saturated desired velocity
-``nu (kp / kv) (x_goal - x)`` at every step.
+The PD law of eq. 27-28 is reproduced exactly, both saturations included:
+PlaCo's task acceleration is ``kp (x_target - x) + kd (v_target - v) +
+a_target``; hqp sets ``kp = kd = 0`` and ``a_target`` to the hqp task's own
+reference acceleration (:class:`hqp.tasks.reference.PDReference`) at every
+step.
 """
 
 from __future__ import annotations
@@ -34,7 +36,7 @@ from typing import Any
 
 import numpy as np
 
-from comparisons.common import DT, Hierarchy
+from comparisons.common import DT, JOINT_VELOCITY_SCALE, Hierarchy, braking_acceleration
 from hqp.controller import Command, FeasibilityReport
 from hqp.robots import Robot
 
@@ -81,6 +83,14 @@ class PlacoController:
         self.solver.enable_joint_limits(True)
         self.solver.enable_velocity_limits(True)
         self.solver.enable_torque_limits(True)
+        # The joint-limit assumptions of the HQP stack (comparisons.common.build_stack): the
+        # same braking acceleration (PlaCo's qdd_safe, 1 rad/s^2 by default: the first
+        # MuJoCo step's contact transient of ~1 rad/s at an ankle already made every QP
+        # infeasible) and the same fraction of the velocity limits.
+        for name, qdd, vmax in zip(self.names, braking_acceleration(robot, self.model),
+                                   JOINT_VELOCITY_SCALE * self.model.v_max, strict=True):
+            self.solver.set_qdd_safe(name, float(qdd))
+            self.robot.set_velocity_limit(name, float(vmax))
         q = robot.q_standing
         self._set_state(q, np.zeros(self.model.nv))
         for name in robot.feet:
@@ -125,7 +135,7 @@ class PlacoController:
                     raise InvalidInput(
                         f"PlacoController: no PlaCo mapping for {type(task).__name__}"
                     )
-                pt.kp, pt.kd = 0.0, ref.kv
+                pt.kp, pt.kd = 0.0, 0.0
                 pt.configure(task.name, "hard" if hard else "soft", task.weight)
                 self._tracked.append((task, pt, kind))
         self.hard_levels = [lv for k, (lv, ts) in enumerate(hierarchy.levels)
@@ -149,17 +159,15 @@ class PlacoController:
                 pt.omega_world = sample.velocity
                 continue
             if kind == "com":
-                x = self.model.com[: task.goal_size]
+                m = task.goal_size
+                x, xd = self.model.com[:m], self.model.com_velocity[:m]
             else:
-                x = self.model.frame_placement(task.frame).translation[task.axes] \
-                    if hasattr(task, "axes") else self.model.frame_placement(task.frame).translation
-            v_des = task.reference.desired_velocity(np.asarray(x) - sample.position)
-            full = np.zeros(3)
-            full[: v_des.size] = v_des
-            pt.dtarget_world = full
-            tgt = np.array(pt.target_world)
-            tgt[: v_des.size] = np.asarray(x)
-            pt.target_world = tgt
+                x = self.model.frame_placement(task.frame).translation
+                xd = self.model.frame_velocity(task.frame)[:3]
+            acc = np.zeros(3)
+            acc[: x.size] = task.reference(x, xd, sample.position, sample.velocity,
+                                           sample.acceleration)
+            pt.ddtarget_world = acc  # kp = kd = 0: PlaCo's task acceleration is exactly this
         result = self.solver.solve(False)
         if result.success:  # (tau_dict of a failed solve crashes placo 0.10.2)
             tau_dict = result.tau_dict(self.robot)
