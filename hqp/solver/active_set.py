@@ -36,7 +36,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from hqp.solver.linalg import PivotedQR, _dtrtrs
+from hqp.solver.linalg import _dgeqp3, _dorgqr, _dtrtrs, lstsq
+
+_NO_ROWS = np.zeros(0, dtype=np.intp)
 
 FEAS_TOL = 1e-9
 """Primal tolerance (times ``max(1, |bound|)``), as in the hierarchy's checks."""
@@ -125,10 +127,16 @@ def solve_guess(
     p = 0 if G is None else G.shape[0]
     mc = C.shape[0]
     me = 0 if E is None else E.shape[0]
-    tl = FEAS_TOL * los if mc else None
-    tu = FEAS_TOL * ups if mc else None
-    ptl = FEAS_TOL * gls if p else None
-    ptu = FEAS_TOL * gus if p else None
+    if mc:
+        tl = FEAS_TOL * los
+        tu = FEAS_TOL * ups
+        lo_in = lo - tl  # band checks with their tolerance
+        up_in = up + tu
+        lo_out = lo + tl
+        up_out = up - tu
+    if p:
+        gl_in = gl - FEAS_TOL * gls
+        gu_in = gu + FEAS_TOL * gus
     if mc and s.any():
         # a stale guess may hold a row at an infinite bound
         s = np.where(((s > 0) & (up == np.inf)) | ((s < 0) & (lo == -np.inf)), 0, s).astype(
@@ -136,6 +144,7 @@ def solve_guess(
     if p and w.any():
         w = np.where(((w > 0) & (gu == np.inf)) | ((w < 0) & (gl == -np.inf)), 0, w).astype(
             np.int8)
+    es = np.maximum(1.0, np.abs(e)) if me else None
     seen: set[bytes] = set()
     for it in range(max_iter + 1):
         key = s.tobytes() + w.tobytes()
@@ -144,60 +153,72 @@ def solve_guess(
         seen.add(key)
         # stacked least-squares rows M v ~ d and held rows K v = k
         if mc and s.any():
-            sel = s != 0
+            sel = np.flatnonzero(s)
             M = np.concatenate((A, C[sel]))
             d = np.concatenate((b, np.where(s[sel] > 0, up[sel], lo[sel])))
         else:
             M, d = A, b
-        held = w != 0 if p else None
-        nheld = int(np.count_nonzero(held)) if p else 0
+        held = np.flatnonzero(w) if p else _NO_ROWS
+        nheld = held.size
+        rk = 0
         if me or nheld:
             if nheld:
+                wp = w[held] > 0
                 Gh = G[held]
-                kh = np.where(w[held] > 0, gu[held], gl[held])
-                khs = np.where(w[held] > 0, gus[held], gls[held])
-                K = Gh if not me else np.concatenate((E, Gh))
-                k = kh if not me else np.concatenate((e, kh))
-                ks = khs if not me else np.concatenate((np.maximum(1.0, np.abs(e)), khs))
+                kh = np.where(wp, gu[held], gl[held])
+                khs = np.where(wp, gus[held], gls[held])
+                if me:
+                    K = np.concatenate((E, Gh))
+                    k = np.concatenate((e, kh))
+                    ks = np.concatenate((es, khs))
+                else:
+                    K, k, ks = Gh, kh, khs
             else:
-                K, k, ks = E, e, np.maximum(1.0, np.abs(e))
-            fk = PivotedQR(K, rank_tol, 0.0)
-            rk = fk.rank
-            Q = fk.Q()
-            piv = fk.piv
-            R11 = fk.qr[:rk, :rk]
+                K, k, ks = E, e, es
+            qr, jpvt, tau, _work, _info = _dgeqp3(K.T.copy(order="F"))
+            piv = jpvt - 1
+            diag = np.abs(np.diagonal(qr))
+            if diag.size:
+                rk = int(np.count_nonzero(diag > rank_tol * float(diag[0])))
+            nk = K.shape[0]
+            if rk < nv:
+                a = np.zeros((nv, nv), order="F")
+                a[:, :nk] = qr[:, :nv] if nk > nv else qr
+                t = np.zeros(nv)
+                t[: tau.size] = tau
+                Q = _dorgqr(a, t)[0]
+            else:
+                Q = _dorgqr(np.array(qr[:, :nv], order="F"), tau[:nv])[0]
+            Q1 = Q[:, :rk]
+            R11 = qr[:rk, :rk]
             if rk:
-                t = _dtrtrs(R11, k[piv[:rk]], lower=0, trans=1)[0]
-                vp = Q[:, :rk] @ t
+                vp = Q1 @ _dtrtrs(R11, k[piv[:rk]], lower=0, trans=1)[0]
             else:
                 vp = np.zeros(nv)
-            if rk < K.shape[0]:
+            if rk < nk:
                 dep = piv[rk:]
                 if (np.abs(K[dep] @ vp - k[dep]) > CONSISTENCY_TOL * ks[dep]).any():
                     return None, Guess(s, w), it + 1
             Q2 = Q[:, rk:]
-            if M.shape[0] and Q2.shape[1]:
+            if M.shape[0] and rk < nv:
                 MQ = M @ Q2
                 rhs = d - M @ vp
                 if ref is None:
-                    z = PivotedQR(MQ, rank_tol, scale).lstsq(rhs)
+                    v = vp + Q2 @ lstsq(MQ, rhs, rank_tol, scale)
                 else:
                     zr = Q2.T @ ref
-                    z = zr + PivotedQR(MQ, rank_tol, scale).lstsq(rhs - MQ @ zr)
-                v = vp + Q2 @ z
-            elif Q2.shape[1] and ref is not None:
+                    v = vp + Q2 @ (zr + lstsq(MQ, rhs - MQ @ zr, rank_tol, scale))
+            elif rk < nv and ref is not None:
                 v = vp + Q2 @ (Q2.T @ ref)
             else:
                 v = vp
-        else:
-            rk = 0
-            if M.shape[0]:
-                if ref is None:
-                    v = PivotedQR(M, rank_tol, scale).lstsq(d)
-                else:
-                    v = ref + PivotedQR(M, rank_tol, scale).lstsq(d - M @ ref)
+        elif M.shape[0]:
+            if ref is None:
+                v = lstsq(M, d, rank_tol, scale)
             else:
-                v = np.zeros(nv) if ref is None else ref.copy()
+                v = ref + lstsq(M, d - M @ ref, rank_tol, scale)
+        else:
+            v = np.zeros(nv) if ref is None else ref.copy()
         if not np.isfinite(v).all():
             break
         # primal checks and the next guess
@@ -205,44 +226,36 @@ def solve_guess(
         s_new = s
         if mc:
             cv = C @ v
-            out_up = cv > up + tu
-            out_lo = cv < lo - tl
-            inside = s == 0
-            inside_bad = inside & (out_up | out_lo)
-            up_bad = (s > 0) & (cv < up - tu)
-            lo_bad = (s < 0) & (cv > lo + tl)
-            if inside_bad.any() or up_bad.any() or lo_bad.any():
+            out_up = cv > up_in
+            out_lo = cv < lo_in
+            bad = np.where(s == 0, out_up | out_lo,
+                           np.where(s > 0, cv < up_out, cv > lo_out))
+            if bad.any():
                 ok = False
                 # only the rows that fail their check change state
-                s_new = s.copy()
-                s_new[up_bad | lo_bad] = 0
-                s_new[inside & out_up] = 1
-                s_new[inside & out_lo] = -1
+                s_new = np.where(bad, out_up.astype(np.int8) - out_lo.astype(np.int8),
+                                 s).astype(np.int8)
         w_new = w
         if p:
             gv = G @ v
-            free = w == 0
-            over = free & (gv > gu + ptu)
-            under = free & (gv < gl - ptl)
+            over = gv > gu_in
+            under = gv < gl_in
+            viol = (over | under) & (w == 0)
             wrong = None
-            if nheld and rk:
-                res = M @ v - d
-                grad = M.T @ res
-                mu_piv = _dtrtrs(R11, -(Q[:, :rk].T @ grad), lower=0)[0]
+            if rk and nheld:
+                grad = M.T @ (M @ v - d)
                 mu = np.zeros(K.shape[0])
-                mu[piv[:rk]] = mu_piv
+                mu[piv[:rk]] = _dtrtrs(R11, -(Q1.T @ grad), lower=0)[0]
                 mug = mu[me:]
-                wh = w[held]
                 dtol = DUAL_TOL * max(1.0, float(np.abs(M).max()) * max(1.0, float(
                     np.abs(d).max()))) if M.size else DUAL_TOL
-                bad = ((wh > 0) & (mug < -dtol)) | ((wh < 0) & (mug > dtol))
-                if bad.any():
-                    wrong = np.flatnonzero(held)[bad]
-            if over.any() or under.any() or wrong is not None:
+                bad_mu = np.where(wp, mug < -dtol, mug > dtol)
+                if bad_mu.any():
+                    wrong = held[bad_mu]
+            if wrong is not None or viol.any():
                 ok = False
-                w_new = w.copy()
-                w_new[over] = 1
-                w_new[under] = -1
+                w_new = np.where(viol, over.astype(np.int8) - under.astype(np.int8), w).astype(
+                    np.int8)
                 if wrong is not None:
                     w_new[wrong] = 0
         if ok:

@@ -90,3 +90,40 @@ class PivotedQR:
         return np.linalg.svd(R, compute_uv=False)
 
 
+
+
+_dgelsy = lapack.dgelsy
+
+
+def lstsq(M: np.ndarray, rhs: np.ndarray, rank_tol: float, scale: float) -> np.ndarray:
+    """Minimum-norm least-squares solution of ``M y ~ rhs`` (one LAPACK ``dgelsy`` call).
+
+    Rank: complete orthogonal factorisation with column pivoting, with the
+    threshold ``rank_tol * max(|R_00|, scale)`` as in :class:`PivotedQR`
+    (``|R_00|`` estimated by the largest entry of ``M``, within a factor
+    ``sqrt(r)`` of it).
+
+    Args:
+        M: Matrix ``(m, r)``.
+        rhs: Right-hand side ``(m,)``.
+        rank_tol: Relative rank threshold.
+        scale: Largest entry of the unprojected rows (0 if unknown).
+
+    Returns:
+        ``y`` ``(r,)``.
+
+    """
+    m, r = M.shape
+    if m == 0 or r == 0:
+        return np.zeros(r)
+    top = float(np.abs(M).max())
+    if top == 0.0:
+        return np.zeros(r)
+    cond = rank_tol * max(1.0, scale / top)
+    mx = max(m, r)
+    b = np.zeros((mx, 1))
+    b[:m, 0] = rhs
+    lwork = 2 * mx + 64 * (r + 2)
+    _v, x, _j, _rank, _info = _dgelsy(M, b, np.zeros(r, dtype=np.int32), cond, lwork,
+                                      overwrite_a=0, overwrite_b=1)
+    return x[:r, 0]
