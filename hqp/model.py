@@ -14,6 +14,7 @@ Spatial 6-vectors are ordered ``[linear, angular]``.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -137,8 +138,7 @@ class RobotModel:
         if np.any(self.v_max < 0) or np.any(self.tau_max < 0):
             raise InvalidInput(f"RobotModel {name!r}: negative velocity or torque limit")
 
-        self._zero_v = np.zeros(self.nv)
-        self._frame_cache: dict[tuple[int, str], np.ndarray] = {}
+        self._frame_cache: dict[tuple[str, pin.ReferenceFrame, int], np.ndarray] = {}
         self.q = pin.neutral(model)
         self.v = np.zeros(self.nv)
         self.M = np.zeros((self.nv, self.nv))
@@ -149,7 +149,8 @@ class RobotModel:
         self.com_drift = np.zeros(3)
         self.centroidal_matrix = np.zeros((6, self.nv))
         self.centroidal_drift = np.zeros(6)
-        self._g: np.ndarray | None = None
+        self._g = np.zeros(self.nv)
+        self._upper = np.triu(np.ones((self.nv, self.nv), dtype=bool))
         self.update(self.q, self.v)
 
     # -- construction -------------------------------------------------------------------------
@@ -228,43 +229,37 @@ class RobotModel:
                 f"robot {self.name!r}: state shapes q {q.shape}, v {v.shape}; "
                 f"expected ({self.nq},), ({self.nv},)"
             )
-        if not (np.isfinite(q).all() and np.isfinite(v).all()):
+        # One reduction first (NaN and inf propagate; an overflow falls to the exact check).
+        if not math.isfinite(q.dot(q) + v.dot(v)) and not (
+            np.isfinite(q).all() and np.isfinite(v).all()
+        ):
             raise InvalidInput(f"robot {self.name!r}: state holds NaN or inf")
         model, data = self.model, self.data
         self.q = q.copy()
         self.v = v.copy()
         self._frame_cache.clear()
-        self._g = None
-
-        pin.crba(model, data, q)
+        # One pass over the tree (pinocchio's computeAllTerms): joint placements, velocities and
+        # accelerations at qdd = 0 (the drift terms of the frames), joint Jacobians, M (upper
+        # triangle), h, g, centre of mass, its velocity and Jacobian, A_g and dA_g.
+        pin.computeAllTerms(model, data, self.q, self.v)
+        pin.updateFramePlacements(model, data)
         M = data.M
-        self.M = np.triu(M) + np.triu(M, 1).T
-        self.h = pin.nonLinearEffects(model, data, q, v).copy()
-        # pinocchio 3.8 reads data.vcom[0] left by the previous step's centerOfMass in
-        # computeCentroidalMapTimeVariation (wrong dAg from the second update on): reset it.
-        data.vcom[0] = np.zeros(3)
-        pin.computeCentroidalMapTimeVariation(model, data, q, v)
+        self.M = np.where(self._upper, M, M.T)
+        self.h = data.nle.copy()
+        self._g = data.g.copy()
         self.centroidal_matrix = data.Ag.copy()
-        self.centroidal_drift = data.dAg @ v
-        self.com_jacobian = pin.jacobianCenterOfMass(model, data, q, False).copy()
-        # Last: kinematics with zero acceleration, so data.a holds the drift terms.
-        pin.centerOfMass(model, data, q, v, self._zero_v)
+        self.centroidal_drift = data.dAg @ self.v
+        self.com_jacobian = data.Jcom.copy()
         self.com = data.com[0].copy()
         self.com_velocity = data.vcom[0].copy()
-        self.com_drift = data.acom[0].copy()
-        pin.computeJointJacobians(model, data)
-        pin.updateFramePlacements(model, data)
+        # Linear rows of dA_g v are the momentum rate m c_ddot at qdd = 0.
+        self.com_drift = self.centroidal_drift[:3] / data.mass[0]
 
     # -- whole-body quantities ----------------------------------------------------------------
 
     @property
     def gravity(self) -> np.ndarray:
-        """Generalized gravity ``g(q)`` ``(nv,)`` (computed on first use after an update)."""
-        if self._g is None:
-            self._g = pin.computeGeneralizedGravity(self.model, self.data, self.q).copy()
-            # computeGeneralizedGravity ran kinematics without velocity: restore data.v/data.a.
-            pin.forwardKinematics(self.model, self.data, self.q, self.v, self._zero_v)
-            pin.updateFramePlacements(self.model, self.data)
+        """Generalized gravity ``g(q)`` ``(nv,)`` [N m] (from the update's single pass)."""
         return self._g
 
     def selection(self) -> np.ndarray:
@@ -280,31 +275,38 @@ class RobotModel:
         return self.data.oMf[self.frame_id(name)]
 
     def frame_jacobian(self, name: str, reference: pin.ReferenceFrame = LWA) -> np.ndarray:
-        """Frame Jacobian ``(6, nv)``, rows ``[linear; angular]``."""
-        fid = self.frame_id(name)
-        key = (fid, f"J{int(reference)}")
+        """Frame Jacobian ``(6, nv)``, rows ``[linear; angular]`` (computed once per update).
+
+        The array is shared by every caller of the step: read it, do not modify it.
+        """
+        key = (name, reference, 0)
         J = self._frame_cache.get(key)
         if J is None:
-            J = pin.getFrameJacobian(self.model, self.data, fid, reference)
+            J = pin.getFrameJacobian(self.model, self.data, self.frame_id(name), reference)
             self._frame_cache[key] = J
         return J
 
     def frame_velocity(self, name: str, reference: pin.ReferenceFrame = LWA) -> np.ndarray:
-        """Frame spatial velocity ``(6,)`` ``[linear; angular]``."""
-        fid = self.frame_id(name)
-        return pin.getFrameVelocity(self.model, self.data, fid, reference).vector
+        """Frame spatial velocity ``(6,)`` ``[linear; angular]`` (computed once per update)."""
+        key = (name, reference, 1)
+        w = self._frame_cache.get(key)
+        if w is None:
+            w = pin.getFrameVelocity(self.model, self.data, self.frame_id(name), reference).vector
+            self._frame_cache[key] = w
+        return w
 
     def frame_drift(self, name: str, reference: pin.ReferenceFrame = LWA) -> np.ndarray:
         """Classical acceleration of a frame at ``qdd = 0`` ``(6,)`` ``[linear; angular]``.
 
         With ``J`` the frame Jacobian, the frame's classical acceleration is
-        ``J qdd + frame_drift``.
+        ``J qdd + frame_drift`` (computed once per update).
         """
-        fid = self.frame_id(name)
-        key = (fid, f"a{int(reference)}")
+        key = (name, reference, 2)
         a = self._frame_cache.get(key)
         if a is None:
-            a = pin.getFrameClassicalAcceleration(self.model, self.data, fid, reference).vector
+            a = pin.getFrameClassicalAcceleration(
+                self.model, self.data, self.frame_id(name), reference
+            ).vector
             self._frame_cache[key] = a
         return a
 

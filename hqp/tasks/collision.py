@@ -47,7 +47,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from hqp.errors import InvalidGain, InvalidInput, check_array
-from hqp.tasks.base import Category, Rows, Task
+from hqp.tasks.base import Category, Rows, Task, cross3
 from hqp.world import Box, Capsule, Sphere, World
 
 if TYPE_CHECKING:
@@ -130,14 +130,14 @@ class _Segment:
         if self.origin is None:
             return self.v6[:3]
         w = self.v6[3:]
-        return self.v6[:3] + np.cross(w, p - self.origin)
+        return self.v6[:3] + cross3(w, p - self.origin)
 
     def drift(self, p: np.ndarray) -> np.ndarray:
         if self.origin is None:
             return np.zeros(3)
         r = p - self.origin
         w = self.v6[3:]
-        return self.a6[:3] + np.cross(self.a6[3:], r) + np.cross(w, np.cross(w, r))
+        return self.a6[:3] + cross3(self.a6[3:], r) + cross3(w, cross3(w, r))
 
 
 def _skew(r: np.ndarray) -> np.ndarray:
@@ -240,7 +240,7 @@ def _robot_segment(state: RobotModel, proxy: CapsuleProxy, where: str) -> _Segme
     return _Segment(
         a=a,
         u=u,
-        u_dot=np.cross(v6[3:], u),
+        u_dot=cross3(v6[3:], u),
         radius=proxy.radius,
         origin=o.copy(),
         J6=state.frame_jacobian(proxy.frame),

@@ -178,6 +178,11 @@ class Contact(Task):
         self.reference: pin.SE3 | None = None
         """Reference placement of the stabilisation (captured at activation when ``kp > 0``)."""
         self._error = np.zeros(0)
+        self._slot_layout: Layout | None = None
+        self._slot_key: tuple[object, ...] = ()
+        self._slot: ContactSlot | None = None
+        self._cone_key: tuple[object, ...] = ()
+        self._cone = np.zeros((0, 0))
         if model is not None:
             model.frame_id(frame, w)
 
@@ -220,12 +225,15 @@ class Contact(Task):
     # -- rows ---------------------------------------------------------------------------------
 
     def slot(self, layout: Layout) -> ContactSlot:
-        """Return this contact's slot in ``layout``.
+        """Return this contact's slot in ``layout`` (checked once per layout).
 
         Raises:
             InvalidInput: No slot of that name, or one with another frame or kind.
 
         """
+        key = (self.name, self.frame, self.kind)
+        if self._slot is not None and self._slot_layout is layout and self._slot_key == key:
+            return self._slot
         try:
             slot = layout.contact(self.name)
         except InvalidInput as exc:
@@ -235,7 +243,13 @@ class Contact(Task):
                 f"{self.where()}: layout slot is ({slot.frame!r}, {slot.kind.name}), "
                 f"contact is ({self.frame!r}, {self.kind.name})"
             )
+        self._slot_layout, self._slot_key, self._slot = layout, key, slot
         return slot
+
+    def _check_frame(self, state: RobotModel) -> None:
+        """Raise :class:`InvalidFrame` (naming the primitive) if the frame is not in the model."""
+        if not state.has_frame(self.frame):
+            state.frame_id(self.frame, self.where())
 
     def rows(self, state: RobotModel, layout: Layout, dt: float, t: float) -> Rows:
         """Physics rows ``(size, n)``: the contact condition, or ``f_c = 0`` when inactive.
@@ -246,8 +260,8 @@ class Contact(Task):
 
         """
         slot = self.slot(layout)
-        state.frame_id(self.frame, self.where())
-        k = self.size
+        self._check_frame(state)
+        k = self.kind.value
         A = np.zeros((k, layout.n))
         if not self.active:
             A[:, slot.slice] = np.eye(k)
@@ -288,27 +302,41 @@ class Contact(Task):
 
         """
         slot = self.slot(layout)
-        state.frame_id(self.frame, self.where())
-        R = self.rotation(state)
-        k = self.size
-        rot = np.zeros((k, k))  # f_local = rot @ f_world
-        rot[:3, :3] = R.T
-        if k == 6:
-            rot[3:, 3:] = R.T
-        G = wrench_cone_local(self.kind, self.mu, self.half_length, self.half_width)
-        normal = np.zeros((1, k))
-        normal[0, 2] = 1.0
-        local = np.vstack([G[:4], normal, G[4:]])
+        self._check_frame(state)
+        Rt = state.frame_placement(self.frame).rotation.T
+        local = self.local_limits()
         m = local.shape[0]
         C = np.zeros((m, layout.n))
-        C[:, slot.slice] = local @ rot
-        upper = np.zeros(m)
-        lower = np.full(m, -np.inf)
-        lower[4], upper[4] = self.f_min, self._f_max
-        if not self.active:
-            lower[:] = -np.inf
-            upper[:] = np.inf
+        i = slot.start
+        # C[:, slot] = local @ blockdiag(R^T, R^T): force and torque columns separately.
+        C[:, i : i + 3] = local[:, :3].dot(Rt)
+        if self.kind is ContactType.SURFACE:
+            C[:, i + 3 : i + 6] = local[:, 3:].dot(Rt)
+        if self.active:
+            upper = np.zeros(m)
+            lower = np.full(m, -np.inf)
+            lower[4], upper[4] = self.f_min, self._f_max
+        else:
+            lower = np.full(m, -np.inf)
+            upper = np.full(m, np.inf)
         return Rows(C=C, lower=lower, upper=upper)
+
+    def local_limits(self) -> np.ndarray:
+        """Limit rows over the wrench in the contact frame's axes ``(17, 6)`` or ``(5, 3)``.
+
+        Friction pyramid (4), normal force (1), then for a surface the centre of pressure (4)
+        and the yaw torque (8) (:func:`wrench_cone_local` with the normal row inserted). Built
+        once per friction coefficient and sole size; read only.
+        """
+        key = (self.kind, self.mu, self.half_length, self.half_width)
+        if key != self._cone_key:
+            G = wrench_cone_local(self.kind, self.mu, self.half_length, self.half_width)
+            normal = np.zeros((1, self.kind.value))
+            normal[0, 2] = 1.0
+            local = np.vstack([G[:4], normal, G[4:]])
+            local.flags.writeable = False
+            self._cone_key, self._cone = key, local
+        return self._cone
 
     def local_wrench(self, state: RobotModel, layout: Layout, x: np.ndarray) -> np.ndarray:
         """Return the slot of a solution in the contact frame's axes ``(size,)``."""

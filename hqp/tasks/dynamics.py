@@ -65,6 +65,21 @@ def _check_layout(state: RobotModel, layout: Layout, where: str) -> None:
         raise InvalidInput(f"{where}: layout has nv={layout.nv}, robot has nv={state.nv}")
 
 
+def _contact_columns(
+    state: RobotModel, layout: Layout, out: np.ndarray, rows: slice, where: str
+) -> None:
+    """Write ``-J_c[:, rows]^T`` of every contact slot into its columns of ``out`` ``(r, n)``.
+
+    ``J_c`` is the slot's frame Jacobian (:func:`contact_jacobian`), read once per update from
+    the model's cache; the other columns of ``out`` are left as they are.
+    """
+    for slot in layout.contacts:
+        if where:
+            state.frame_id(slot.frame, where)
+        k = slot.kind.value
+        out[:, slot.start : slot.start + k] = -state.frame_jacobian(slot.frame)[:k, rows].T
+
+
 def generalized_contact_matrix(state: RobotModel, layout: Layout, where: str = "") -> np.ndarray:
     """``[J_1^T | ... | J_k^T]`` ``(nv, n - nv)``: generalized force of the contact slots.
 
@@ -100,10 +115,12 @@ def torque_map(state: RobotModel, layout: Layout, where: str = "") -> tuple[np.n
         InvalidInput: The layout does not match the robot.
 
     """
+    _check_layout(state, layout, where or "generalized_contact_matrix")
     act = state.actuated
-    T = np.zeros((state.na, layout.n))
-    T[:, : layout.nv] = state.M[act]
-    T[:, layout.nv :] = -generalized_contact_matrix(state, layout, where)[act]
+    nv = layout.nv
+    T = np.zeros((state.na, nv + sum(slot.kind.value for slot in layout.contacts)))
+    T[:, :nv] = state.M[act]
+    _contact_columns(state, layout, T, act, where)
     return T, state.h[act].copy()
 
 
@@ -160,14 +177,16 @@ class FloatingBaseDynamics(Task):
             InvalidInput: The layout does not match the robot.
 
         """
-        _check_layout(state, layout, self.where())
+        where = self.where()
+        _check_layout(state, layout, where)
         nb = state.nv_base
         if nb == 0:
             return Rows()
-        A = np.zeros((nb, layout.n))
-        A[:, : layout.nv] = state.M[:nb]
-        A[:, layout.nv :] = -generalized_contact_matrix(state, layout, self.where())[:nb]
-        return Rows(A=A, b=-state.h[:nb].copy())
+        nv = layout.nv
+        A = np.zeros((nb, nv + sum(slot.kind.value for slot in layout.contacts)))
+        A[:, :nv] = state.M[:nb]
+        _contact_columns(state, layout, A, slice(0, nb), where)
+        return Rows(A=A, b=-state.h[:nb])
 
     def torques(self, state: RobotModel, layout: Layout, x: np.ndarray) -> np.ndarray:
         """Actuated torques of a solution (see :func:`joint_torques`)."""

@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from hqp.errors import InvalidInput, check_array
-from hqp.tasks.base import Category
+from hqp.tasks.base import Category, cross3
 from hqp.tasks.tracking import TaskKinematics, VectorGoalTask
 
 if TYPE_CHECKING:
@@ -89,7 +89,7 @@ class GazeTask(VectorGoalTask):
         u = helper - a * (a @ helper)
         u /= np.linalg.norm(u)
         self.axis = a
-        self._P = np.vstack([u, np.cross(a, u)])  # rows u, w
+        self._P = np.vstack([u, cross3(a, u)])  # rows u, w
 
     def value(self, state: RobotModel) -> np.ndarray:
         """Return the point 1 m ahead on the gaze ray ``(3,)`` [m] (start of :meth:`move_to`)."""
@@ -108,12 +108,13 @@ class GazeTask(VectorGoalTask):
         do, w = vel[:3], vel[3:]
         r = g - o
         dr = dg - do
-        p = R.T @ r
-        wv = dr + np.cross(r, w)  # R dp/dt
-        dp = R.T @ wv
-        Jp = R.T @ (-J[:3] + _skew(r) @ J[3:])
+        Rt = R.T
+        p = Rt.dot(r)
+        wv = dr + cross3(r, w)  # R dp/dt
+        dp = Rt.dot(wv)
+        Jp = Rt.dot(_skew(r).dot(J[3:]) - J[:3])
         # R^T d/dt(wv) without qdd, minus omega x wv from d/dt R^T.
-        ddp0 = R.T @ (ddg - acc[:3] + np.cross(dr, w) + np.cross(r, acc[3:]) - np.cross(w, wv))
+        ddp0 = Rt.dot(ddg - acc[:3] + cross3(dr, w) + cross3(r, acc[3:]) - cross3(w, wv))
         norm = float(np.linalg.norm(p))
         if norm < 1e-9:
             raise InvalidInput(f"{self.where()}: the target is at the head frame's origin")

@@ -10,7 +10,7 @@ import numpy as np
 
 from hqp.errors import InvalidInput, check_array
 from hqp.layout import ContactType
-from hqp.tasks.base import Category, Rows
+from hqp.tasks.base import Category, Rows, cross3
 from hqp.tasks.pose import PoseTask
 from hqp.tasks.tracking import TaskKinematics
 
@@ -138,12 +138,12 @@ class HybridTask(PoseTask):
         wg, ag = g.velocity[3:], g.acceleration[3:]
         e, de = full.error[3:], full.rate[3:]
         ew, dew0 = Rg @ e, Rg @ de
-        rate = dew0 + np.cross(wg, ew)
+        rate = dew0 + cross3(wg, ew)
         drift = (
             Rg @ full.drift[3:]
-            + 2.0 * np.cross(wg, dew0)
-            + np.cross(ag, ew)
-            + np.cross(wg, np.cross(wg, ew))
+            + 2.0 * cross3(wg, dew0)
+            + cross3(ag, ew)
+            + cross3(wg, cross3(wg, ew))
         )
         Jw = Rg @ full.jacobian[3:]
         return TaskKinematics(

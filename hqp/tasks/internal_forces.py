@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from hqp.errors import InvalidInput, check_array
-from hqp.tasks.base import Category, Rows, Task
+from hqp.tasks.base import Category, Rows, Task, cross3
 
 if TYPE_CHECKING:
     from hqp.layout import ContactSlot, Layout
@@ -37,11 +37,11 @@ def line_frame(p1: np.ndarray, p2: np.ndarray, where: str) -> tuple[np.ndarray, 
     if L < 1e-9:
         raise InvalidInput(f"{where}: the two contact frames coincide")
     d = diff / L
-    sh = np.cross([0.0, 0.0, 1.0], d)
+    sh = cross3([0.0, 0.0, 1.0], d)
     if np.linalg.norm(sh) < 1e-6:  # vertical line
-        sh = np.cross([1.0, 0.0, 0.0], d)
+        sh = cross3([1.0, 0.0, 0.0], d)
     sh /= np.linalg.norm(sh)
-    return d, sh, np.cross(d, sh), np.array(L)
+    return d, sh, cross3(d, sh), np.array(L)
 
 
 def internal_basis(p1: np.ndarray, p2: np.ndarray, surface: bool, where: str) -> np.ndarray:
@@ -73,7 +73,7 @@ def internal_basis(p1: np.ndarray, p2: np.ndarray, surface: bool, where: str) ->
     B = np.zeros((12, 6))
     B[0:3, 0], B[6:9, 0] = -d, d
     for k, s in ((1, sh), (2, sv)):
-        tau = -0.5 * float(L) * np.cross(d, s)
+        tau = -0.5 * float(L) * cross3(d, s)
         B[0:3, k], B[3:6, k] = -s, tau
         B[6:9, k], B[9:12, k] = s, tau
     for k, e in ((3, d), (4, sh), (5, sv)):

@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import pinocchio as pin
 
-from hqp.tasks.base import Category
+from hqp.tasks.base import Category, cross3
 from hqp.tasks.reference import MinimumJerkRotation, TrajectorySample, check_rotation
 from hqp.tasks.tracking import TaskKinematics, TrackingTask
 
@@ -20,6 +20,45 @@ def _skew(a: np.ndarray) -> np.ndarray:
     return np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
 
 
+def _jlog3_coefficients(th: float) -> tuple[float, float]:
+    """``beta(theta)`` and ``gamma = beta'(theta) / theta`` of :func:`jlog3_rate`."""
+    if th < 1e-2:
+        t2 = th * th
+        beta = 1.0 / 12.0 + t2 / 720.0 + t2 * t2 / 30240.0
+        gamma = 1.0 / 360.0 + t2 / 7560.0 + t2 * t2 / 201600.0
+    else:
+        s, c = math.sin(th), math.cos(th)
+        beta = 1.0 / th**2 - (1.0 + c) / (2.0 * th * s)
+        gamma = (-2.0 / th**3 + (th + s) / (2.0 * th**2 * (1.0 - c))) / th
+    return beta, gamma
+
+
+def jlog3_rate_times(e: np.ndarray, de: np.ndarray, xi: np.ndarray) -> np.ndarray:
+    """``jlog3_rate(e, de) @ xi`` ``(3,)`` without forming the matrix.
+
+    With ``[a]x [b]x = b a^T - (a . b) I``:
+    ``[e]x^2 xi = e (e . xi) - |e|^2 xi`` and
+    ``([de]x [e]x + [e]x [de]x) xi = e (de . xi) + de (e . xi) - 2 (e . de) xi``.
+    """
+    e0, e1, e2 = e.tolist()
+    d0, d1, d2 = de.tolist()
+    x0, x1, x2 = xi.tolist()
+    ee = e0 * e0 + e1 * e1 + e2 * e2
+    ed = e0 * d0 + e1 * d1 + e2 * d2
+    ex = e0 * x0 + e1 * x1 + e2 * x2
+    dx = d0 * x0 + d1 * x1 + d2 * x2
+    beta, gamma = _jlog3_coefficients(math.sqrt(ee))
+    g = gamma * ed
+    ce = g * ex + beta * dx  # coefficient of e
+    cx = -g * ee - 2.0 * beta * ed  # coefficient of xi
+    cd = beta * ex  # coefficient of de
+    return np.array([
+        0.5 * (d1 * x2 - d2 * x1) + ce * e0 + cd * d0 + cx * x0,
+        0.5 * (d2 * x0 - d0 * x2) + ce * e1 + cd * d1 + cx * x1,
+        0.5 * (d0 * x1 - d1 * x0) + ce * e2 + cd * d2 + cx * x2,
+    ])
+
+
 def jlog3_rate(e: np.ndarray, de: np.ndarray) -> np.ndarray:
     """Time derivative of ``Jlog3`` ``(3, 3)`` along ``e(t) = log3(E(t))`` with rate ``de``.
 
@@ -29,15 +68,7 @@ def jlog3_rate(e: np.ndarray, de: np.ndarray) -> np.ndarray:
     Series below ``theta = 1e-2`` (pinocchio's ``Hlog3`` returns NaN at the identity,
     i.e. exactly at the goal).
     """
-    th = float(np.linalg.norm(e))
-    if th < 1e-2:
-        t2 = th * th
-        beta = 1.0 / 12.0 + t2 / 720.0 + t2 * t2 / 30240.0
-        gamma = 1.0 / 360.0 + t2 / 7560.0 + t2 * t2 / 201600.0
-    else:
-        s, c = np.sin(th), np.cos(th)
-        beta = 1.0 / th**2 - (1.0 + c) / (2.0 * th * s)
-        gamma = (-2.0 / th**3 + (th + s) / (2.0 * th**2 * (1.0 - c))) / th
+    beta, gamma = _jlog3_coefficients(float(np.linalg.norm(e)))
     E, dE = _skew(e), _skew(de)
     return 0.5 * dE + gamma * float(e @ de) * (E @ E) + beta * (dE @ E + E @ dE)
 
@@ -57,23 +88,23 @@ def orientation_kinematics(
     with ``J_ang`` and ``a_ang`` the angular rows of the ``LOCAL_WORLD_ALIGNED``
     Jacobian and drift, ``Jlog3`` the Jacobian of the log (not the frame's
     angular Jacobian) and ``Hlog3(E, xi) = d Jlog3(E exp(s xi)) / ds`` at ``s = 0``
-    (computed by :func:`jlog3_rate`, which is finite at the identity).
+    (:func:`jlog3_rate`, applied to ``xi`` by :func:`jlog3_rate_times`; finite at the identity).
     """
     Rg = goal.position
     wg = goal.velocity
     ag = goal.acceleration
     R = state.frame_placement(frame).rotation
-    J_ang = state.frame_jacobian(frame)[3:]
     w = state.frame_velocity(frame)[3:]
     a_ang = state.frame_drift(frame)[3:]
-    E = Rg.T @ R
+    Rt = R.T
+    E = Rg.T.dot(R)
     e = pin.log3(E)
     Jlog = pin.Jlog3(E)
-    xi = R.T @ (w - wg)
-    JR = Jlog @ R.T
-    de = Jlog @ xi
-    drift = JR @ (a_ang + np.cross(w, wg) - ag) + jlog3_rate(e, de) @ xi
-    return TaskKinematics(e, de, JR @ J_ang, drift)
+    xi = Rt.dot(w - wg)
+    JR = Jlog.dot(Rt)
+    de = Jlog.dot(xi)
+    drift = JR.dot(a_ang + cross3(w, wg) - ag) + jlog3_rate_times(e, de, xi)
+    return TaskKinematics(e, de, JR.dot(state.frame_jacobian(frame)[3:]), drift)
 
 
 class OrientationTask(TrackingTask):

@@ -143,6 +143,12 @@ class PostureTask(VectorTrackingTask):
                 raise InvalidInput(f"{w}: weights must be positive")
             self.scale = W
         self._nv = robot.nv
+        # Jacobian (a selection of qdd columns) and drift (zero), shared by every step.
+        self._J = np.zeros((self.goal_size, robot.nv))
+        self._J[np.arange(self.goal_size), self._v_index] = 1.0
+        self._J.flags.writeable = False
+        self._drift = np.zeros(self.goal_size)
+        self._drift.flags.writeable = False
 
     @classmethod
     def symmetry(
@@ -226,7 +232,9 @@ class PostureTask(VectorTrackingTask):
         self.set_goal(qa[self._q_index - robot.nq_base])
 
     def measure(self, state: RobotModel) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """``(q_sel, v_sel, S_sel, 0)``."""
+        """``(q_sel, v_sel, S_sel, 0)`` (``S_sel`` and ``0`` are read-only arrays)."""
+        if state.nv == self._nv:
+            return state.q[self._q_index], state.v[self._v_index], self._J, self._drift
         k = self.goal_size
         J = np.zeros((k, state.nv))
         J[np.arange(k), self._v_index] = 1.0

@@ -47,6 +47,11 @@ def _nonnegative(value: float | None, what: str, where: str, *, allow_inf: bool)
     return v
 
 
+def _norm(x: np.ndarray) -> float:
+    """Euclidean norm of a vector, as ``np.linalg.norm`` computes it (``sqrt(x . x)``)."""
+    return math.sqrt(x.dot(x)) if x.ndim == 1 else float(np.linalg.norm(x))
+
+
 class PDReference:
     """The saturated PD law of seed 003 eq. 27-28 with feedforward (module docstring).
 
@@ -105,9 +110,10 @@ class PDReference:
         if self.kv == 0.0:
             return np.zeros_like(e)
         v_des = -(self.kp / self.kv) * e
-        norm = float(np.linalg.norm(v_des))
-        if norm > self.max_velocity:
-            v_des = v_des * (self.max_velocity / norm)
+        if self.max_velocity < math.inf:  # else no saturation: skip the norm
+            norm = _norm(v_des)
+            if norm > self.max_velocity:
+                v_des = v_des * (self.max_velocity / norm)
         return v_des
 
     def feedback(self, error: np.ndarray, rate: np.ndarray) -> np.ndarray:
@@ -123,9 +129,10 @@ class PDReference:
 
         """
         a = -self.kv * (np.asarray(rate, dtype=float) - self.desired_velocity(error))
-        norm = float(np.linalg.norm(a))
-        if norm > self.max_acceleration:
-            a = a * (self.max_acceleration / norm)
+        if self.max_acceleration < math.inf:
+            norm = _norm(a)
+            if norm > self.max_acceleration:
+                a = a * (self.max_acceleration / norm)
         return a
 
     def __call__(

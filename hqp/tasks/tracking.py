@@ -245,12 +245,13 @@ class TrackingTask(Task):
             InvalidInput: Goal not set, or a layout that does not match the robot.
 
         """
-        if layout.nv != state.nv:
-            raise InvalidInput(f"{self.where()}: layout nv={layout.nv}, robot nv={state.nv}")
+        nv = layout.nv
+        if nv != state.nv:
+            raise InvalidInput(f"{self.where()}: layout nv={nv}, robot nv={state.nv}")
         kin = self.kinematics(state, t)
         a = self.feedback(kin)
-        A = layout.zeros(kin.jacobian.shape[0])
-        A[:, : layout.nv] = kin.jacobian
+        A = np.zeros((kin.jacobian.shape[0], layout.n))
+        A[:, :nv] = kin.jacobian
         self._last = kin
         self._last_reference = a
         return Rows(A=A, b=a - kin.drift)
