@@ -58,7 +58,8 @@ PLANNER_OUTPUTS: dict[str, frozenset[str]] = {
             "left_foot_velocity", "right_foot_velocity", "left_foot_acceleration",
             "right_foot_acceleration", "trunk_rotation",
             "left_swing", "right_swing", "double_support", "started", "done", "steps_planned",
-            "support_center",
+            "support_center", "left_unload", "right_unload", "left_swing_progress",
+            "right_swing_progress", "swings",
         }
     ),
 }

@@ -5,8 +5,15 @@
 ``FootstepsPlanner.make_supports`` turns them into single and double
 supports, and ``placo.WalkPatternGenerator`` (a LIPM / ZMP preview planner,
 ``placo.LIPM``'s natural frequency ``omega = sqrt(g / h)``) plans the centre
-of mass, the ZMP and the swing-foot trajectories. hqp does not write another
-ZMP preview controller; it tracks these trajectories with its own tasks.
+of mass and the ZMP. hqp does not write another ZMP preview controller; it
+tracks these trajectories with its own tasks.
+
+The swing feet follow :class:`SwingTrajectory` (PlaCo's own swing spline starts
+with a non-zero acceleration): between the lift-off and the touchdown of
+PlaCo's single supports, a minimum-jerk horizontal motion from the footstep
+left to the footstep reached, plus a vertical bump ``64 h s^3 (1 - s)^3`` of
+peak ``h``; position, velocity and acceleration are continuous, and both are
+zero at lift-off and at touchdown (the foot lands with no impact velocity).
 """
 
 from __future__ import annotations
@@ -33,12 +40,93 @@ WALK_DEFAULTS: dict[str, float | int] = {
     "planned_timesteps": 100,
     "single_support_timesteps": 10,
     "start_delay": 0.0,
+    "swing_delay": 0.0,
+    "landing_margin": 0.0,
+    "unload_lead": 0.05,
 }
 """Parameters of the ``placo_walk`` planner: ``distance`` to walk forward [m], maximum
 ``step_length`` between consecutive footsteps [m] (each foot moves twice this per
 step), support durations [s] and ratios, swing ``foot_height`` [m], ZMP margin in
-the sole [m], CoM height offset from the initial one [m], and ``start_delay``: time
-after the behavior starts at which the plan begins [s]."""
+the sole [m], CoM height offset from the initial one [m], PlaCo's preview horizon and
+time discretisation (``planned_timesteps``, ``single_support_timesteps`` per single
+support), ``start_delay``: time after the behavior starts at which the plan begins [s];
+``swing_delay`` and ``landing_margin``: the swing foot lifts this long after a single
+support begins and lands this long before it ends [s]; ``unload_lead``: how long before
+a lift-off ``plan.<side>_unload`` is true (the time given to unload the foot) [s]."""
+
+_SIDES = ("left", "right")
+
+
+def _min_jerk(s: float) -> tuple[float, float, float]:
+    """Minimum-jerk profile ``10 s^3 - 15 s^4 + 6 s^5`` and its first two derivatives."""
+    return (s**3 * (10.0 - 15.0 * s + 6.0 * s * s),
+            30.0 * s * s * (1.0 - s) ** 2,
+            60.0 * s * (1.0 - s) * (1.0 - 2.0 * s))
+
+
+def _bump(s: float) -> tuple[float, float, float]:
+    """Swing height profile ``64 s^3 (1 - s)^3`` (peak 1 at ``s = 1/2``) and its derivatives."""
+    u = 1.0 - s
+    return (64.0 * s**3 * u**3,
+            192.0 * s * s * u * u * (u - s),
+            384.0 * s * u * ((u - s) ** 2 - s * u))
+
+
+class SwingTrajectory:
+    """Trajectory of a swing foot's frame origin between two footsteps.
+
+    ``p(t) = p0 + (p1 - p0) m(s) + e_z h b(s)`` with ``s = (t - t_lift) / (t_land - t_lift)``,
+    ``m`` the minimum-jerk profile and ``b(s) = 64 s^3 (1 - s)^3`` the height profile:
+    velocity and acceleration are zero at lift-off and at touchdown.
+
+    Args:
+        side: ``"left"`` or ``"right"``.
+        t_lift: Lift-off time [s] (plan time).
+        t_land: Touchdown time [s], after ``t_lift``.
+        start: Position at lift-off ``(3,)`` [m].
+        end: Position at touchdown ``(3,)`` [m].
+        height: Peak height above the straight line from ``start`` to ``end`` [m].
+
+    Raises:
+        BehaviorFileError: ``t_land <= t_lift``.
+
+    """
+
+    def __init__(self, side: str, t_lift: float, t_land: float, start: np.ndarray,
+                 end: np.ndarray, height: float) -> None:
+        if not t_land > t_lift:
+            raise BehaviorFileError(f"placo_walk planner: a {side} swing lands at {t_land:.3f} s, "
+                                    f"not after its lift-off at {t_lift:.3f} s (increase the "
+                                    "single support duration or reduce swing_delay and "
+                                    "landing_margin)")
+        self.side = side
+        self.t_lift = float(t_lift)
+        self.t_land = float(t_land)
+        self.start = np.asarray(start, dtype=float).copy()
+        self.end = np.asarray(end, dtype=float).copy()
+        self.height = float(height)
+
+    @property
+    def duration(self) -> float:
+        """Time in the air [s]."""
+        return self.t_land - self.t_lift
+
+    def progress(self, t: float) -> float:
+        """Fraction ``s`` of the swing done at time ``t`` [s], clipped to [0, 1]."""
+        return min(max((float(t) - self.t_lift) / self.duration, 0.0), 1.0)
+
+    def sample(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Position ``(3,)`` [m], velocity [m/s] and acceleration [m/s^2] at time ``t`` [s]."""
+        s = self.progress(t)
+        T = self.duration
+        m, dm, ddm = _min_jerk(s)
+        b, db, ddb = _bump(s)
+        delta = self.end - self.start
+        up = np.array([0.0, 0.0, self.height])
+        p = self.start + m * delta + b * up
+        v = (dm * delta + db * up) / T
+        a = (ddm * delta + ddb * up) / T**2
+        return p, v, a
 
 
 class PlacoWalkPlanner:
@@ -54,6 +142,12 @@ class PlacoWalkPlanner:
 
     Raises:
         BehaviorFileError: An unknown or invalid parameter.
+
+    Attributes:
+        trajectory: PlaCo's ``WPGTrajectory`` (after :meth:`start`).
+        footsteps: PlaCo's footsteps, homogeneous transforms ``(4, 4)`` (the first two are
+            the initial feet).
+        swings: The swing trajectories, in time order.
 
     """
 
@@ -79,8 +173,10 @@ class PlacoWalkPlanner:
         self.urdf = Path(urdf)
         self.foot_length = float(foot_length)
         self.foot_width = float(foot_width)
+        self.where = where
         self.trajectory: Any = None
         self.footsteps: list[np.ndarray] = []
+        self.swings: list[SwingTrajectory] = []
         self.t_start = 0.0
         self.omega = 0.0
         self._last: tuple[float, dict[str, Any]] | None = None
@@ -123,14 +219,85 @@ class PlacoWalkPlanner:
         self.t_start = float(t) + float(p["start_delay"])
         self._sides = (placo.HumanoidRobot_Side.left, placo.HumanoidRobot_Side.right)
         self._com_height = hp.walk_com_height
+        self.swings = self._plan_swings()
+        self._last = None
+
+    def _single_supports(self) -> list[tuple[str, float, float]]:
+        """PlaCo's single supports as ``(swing side, t_begin, t_end)`` [s] (plan time)."""
+        traj = self.trajectory
+        out: list[tuple[str, float, float]] = []
+        grid = np.arange(0.0, float(traj.t_end), 1e-3)
+        current: tuple[str, float] | None = None
+        for x in grid:
+            side = None
+            if not traj.support_is_both(float(x)):
+                side = "left" if traj.support_side(float(x)) == self._sides[1] else "right"
+            if current is not None and side != current[0]:
+                out.append((current[0], current[1], float(x)))
+                current = None
+            if side is not None and current is None:
+                current = (side, float(x))
+        if current is not None:
+            out.append((current[0], current[1], float(traj.t_end)))
+        # exact bounds from PlaCo's trajectory parts
+        exact = []
+        for side, a, b in out:
+            mid = 0.5 * (a + b)
+            exact.append((side, float(traj.get_part_t_start(mid)), float(traj.get_part_t_end(mid))))
+        return exact
+
+    def _plan_swings(self) -> list[SwingTrajectory]:
+        traj = self.trajectory
+        p = self.params
+        swings = []
+        for side, a, b in self._single_supports():
+            frame = traj.get_T_world_left if side == "left" else traj.get_T_world_right
+            start = np.array(frame(a))[:3, 3]
+            end = np.array(frame(max(b - 1e-6, a)))[:3, 3]
+            swings.append(SwingTrajectory(side, a + float(p["swing_delay"]),
+                                          b - float(p["landing_margin"]), start, end,
+                                          float(p["foot_height"])))
+        return swings
 
     @property
     def duration(self) -> float:
         """Duration of the plan [s]."""
         return float(self.trajectory.t_end) if self.trajectory is not None else 0.0
 
+    def _foot(self, side: str, tau: float) -> dict[str, Any]:
+        """Planned state of one foot at plan time ``tau`` [s]."""
+        lead = float(self.params["unload_lead"])
+        for sw in self.swings:
+            if sw.side != side:
+                continue
+            if sw.t_lift <= tau < sw.t_land:
+                pos, vel, acc = sw.sample(tau)
+                return {"position": pos, "velocity": vel, "acceleration": acc, "swing": True,
+                        "progress": sw.progress(tau), "unload": False}
+            if sw.t_lift - lead <= tau < sw.t_lift:
+                return {"position": sw.start.copy(), "velocity": np.zeros(3),
+                        "acceleration": np.zeros(3), "swing": False, "progress": 0.0,
+                        "unload": True}
+        frame = self.trajectory.get_T_world_left if side == "left" else \
+            self.trajectory.get_T_world_right
+        return {"position": np.array(frame(tau))[:3, 3].copy(), "velocity": np.zeros(3),
+                "acceleration": np.zeros(3), "swing": False, "progress": 0.0, "unload": False}
+
     def outputs(self, t: float) -> dict[str, Any]:
-        """Return the ``plan.*`` values at behavior time ``t`` [s] (clamped to the plan)."""
+        """Return the ``plan.*`` values at behavior time ``t`` [s] (clamped to the plan).
+
+        ``com``, ``com_velocity``, ``com_acceleration`` ``(3,)`` and ``zmp`` from PlaCo;
+        per foot (``left_``/``right_`` prefix): ``foot`` position ``(3,)`` [m] with its
+        ``foot_velocity`` and ``foot_acceleration``, ``swing`` (in the air between lift-off
+        and touchdown), ``swing_progress`` (fraction of the swing done, 0 outside one),
+        ``unload`` (within ``unload_lead`` before a lift-off); ``double_support`` (PlaCo's),
+        ``started``, ``done``, ``steps_planned`` (footsteps, initial feet included),
+        ``swings`` (swing phases planned), ``support_center``.
+
+        Raises:
+            BehaviorFileError: Called before :meth:`start`.
+
+        """
         if self.trajectory is None:
             raise BehaviorFileError("placo_walk planner: outputs() before start()")
         if self._last is not None and self._last[0] == t:
@@ -138,39 +305,26 @@ class PlacoWalkPlanner:
         traj = self.trajectory
         tau = min(max(float(t) - self.t_start, 0.0), traj.t_end - 1e-6)
         both = bool(traj.support_is_both(tau))
-        side = None if both else traj.support_side(tau)
-        left, right = self._sides
-        T_l = np.array(traj.get_T_world_left(tau))
-        T_r = np.array(traj.get_T_world_right(tau))
-        # swing-foot velocity and acceleration by central differences of the planned frames
-        h = 2e-3
-        lo, hi = max(tau - h, 0.0), min(tau + h, traj.t_end - 1e-6)
-        p_l = [np.array(traj.get_T_world_left(x))[:3, 3] for x in (lo, tau, hi)]
-        p_r = [np.array(traj.get_T_world_right(x))[:3, 3] for x in (lo, tau, hi)]
-        v_l = (p_l[2] - p_l[0]) / (hi - lo)
-        v_r = (p_r[2] - p_r[0]) / (hi - lo)
-        a_l = (p_l[2] - 2 * p_l[1] + p_l[0]) / h**2 if hi - lo > 1.9 * h else 0 * v_l
-        a_r = (p_r[2] - 2 * p_r[1] + p_r[0]) / h**2 if hi - lo > 1.9 * h else 0 * v_r
-        com = np.array(traj.get_p_world_CoM(tau))
-        out = {
-            "com": com,
+        feet = {side: self._foot(side, tau) for side in _SIDES}
+        out: dict[str, Any] = {
+            "com": np.array(traj.get_p_world_CoM(tau)),
             "com_velocity": np.array(traj.get_v_world_CoM(tau)),
             "com_acceleration": np.array(traj.get_a_world_CoM(tau)),
             "zmp": np.array(traj.get_p_world_ZMP(tau, self.omega)),
-            "left_foot": T_l[:3, 3].copy(),
-            "right_foot": T_r[:3, 3].copy(),
-            "left_foot_velocity": v_l,
-            "right_foot_velocity": v_r,
-            "left_foot_acceleration": a_l,
-            "right_foot_acceleration": a_r,
             "trunk_rotation": np.array(traj.get_R_world_trunk(tau)),
-            "left_swing": side == right,
-            "right_swing": side == left,
             "double_support": both,
             "started": float(t) >= self.t_start,
             "done": float(t) - self.t_start >= traj.t_end,
             "steps_planned": len(self.footsteps),
-            "support_center": 0.5 * (T_l[:3, 3] + T_r[:3, 3]),
+            "swings": len(self.swings),
+            "support_center": 0.5 * (feet["left"]["position"] + feet["right"]["position"]),
         }
+        for side, f in feet.items():
+            out[f"{side}_foot"] = f["position"]
+            out[f"{side}_foot_velocity"] = f["velocity"]
+            out[f"{side}_foot_acceleration"] = f["acceleration"]
+            out[f"{side}_swing"] = f["swing"]
+            out[f"{side}_swing_progress"] = f["progress"]
+            out[f"{side}_unload"] = f["unload"]
         self._last = (t, out)
         return out
