@@ -26,7 +26,19 @@ class QuadprogBackend(QPBackend):
     def solve(self, slot, H, g, E, e, C, lo, up):  # noqa: D102 - documented in the base
         G, h = one_sided(C, lo, up)
         has_eq = E is not None and E.shape[0] > 0
-        v = self._proximal(H, g, G, h, E if has_eq else None, e if has_eq else None)
+        Eq = E if has_eq else None
+        eq = e if has_eq else None
+        # one regularised solve, kept if it meets the (unregularised) KKT conditions
+        try:
+            sol = qpsolvers.solve_problem(
+                qpsolvers.Problem(_regularized(H, REGULARIZATION_SEQUENCE[0]), g, G, h, Eq, eq),
+                solver="quadprog")
+        except qpsolvers.ProblemError:
+            sol = None
+        if sol is not None and sol.found and sol.x is not None and _kkt_ok(
+                H, g, G, h, Eq, eq, sol):
+            return np.asarray(sol.x, dtype=float), True
+        v = self._proximal(H, g, G, h, Eq, eq)
         if v is not None:
             return v, True
         for rel in REGULARIZATION_SEQUENCE:
@@ -39,7 +51,6 @@ class QuadprogBackend(QPBackend):
             if sol.found and sol.x is not None:
                 return np.asarray(sol.x, dtype=float), True
         return np.full(H.shape[0], np.nan), False
-
 
     @staticmethod
     def _proximal(H, g, G, h, E, e):
@@ -84,7 +95,7 @@ class QuadprogBackend(QPBackend):
         return None
 
 
-PROX_RHO = 1e-2
+PROX_RHO = 1e-4
 """Proximal weight relative to ``max(1, max diag H)`` (the hierarchy normalises ``H``)."""
 
 PROX_RELAX = 1e-9
@@ -95,6 +106,40 @@ PROX_STEP_TOL = 1e-11
 
 PROX_MAX_ITER = 200
 """Proximal iterations before falling back to the regularised single solve."""
+
+
+KKT_TOL = 1e-9
+"""Relative tolerance of the KKT check of a quadprog solution (stationarity,
+primal feasibility, multiplier signs, complementarity)."""
+
+
+def _kkt_ok(H, g, G, h, E, e, sol) -> bool:
+    """Whether quadprog's primal-dual solution meets the unregularised problem's KKT conditions.
+
+    quadprog reports success at points far from optimal when ``H`` is nearly
+    singular (its dual steps use ``H^{-1}``); its multipliers then fail these
+    checks, which cost a few matrix-vector products.
+    """
+    x = np.asarray(sol.x, dtype=float)
+    r = H @ x + g
+    scale = max(1.0, float(np.abs(g).max()) if g.size else 0.0,
+                float(np.abs(H).max()) * float(np.abs(x).max()) if x.size else 0.0)
+    if G is not None:
+        z = sol.z
+        if z is None:
+            return False
+        gap = G @ x - h
+        hs = np.maximum(1.0, np.abs(h))
+        if (gap > KKT_TOL * hs).any() or (z < -KKT_TOL * scale).any():
+            return False
+        if (np.abs(z * gap) > KKT_TOL * scale * hs).any():
+            return False
+        r += G.T @ z
+    if E is not None:
+        if sol.y is None:
+            return False
+        r += E.T @ sol.y
+    return bool(np.abs(r).max() <= KKT_TOL * scale) if r.size else True
 
 
 def _regularized(H: np.ndarray, rel: float) -> np.ndarray:
