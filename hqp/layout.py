@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import enum
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 
@@ -45,7 +46,7 @@ class ContactSlot:
     kind: ContactType
     start: int
 
-    @property
+    @cached_property
     def size(self) -> int:
         """Number of entries of the slot."""
         return self.kind.value
@@ -90,7 +91,7 @@ class Layout:
             start += ContactType(kind).value
         return cls(nv=nv, contacts=tuple(slots))
 
-    @property
+    @cached_property
     def n(self) -> int:
         """Total number of decision variables."""
         return self.nv + sum(c.size for c in self.contacts)

@@ -15,9 +15,10 @@ Spatial 6-vectors are ordered ``[linear, angular]``.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Hashable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any, TypeVar
 
 import numpy as np
 import pinocchio as pin
@@ -26,6 +27,8 @@ from hqp.errors import InvalidFrame, InvalidInput, check_array
 
 LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 """Shorthand for pinocchio's ``LOCAL_WORLD_ALIGNED`` reference frame."""
+
+T = TypeVar("T")
 
 
 @dataclass(frozen=True)
@@ -139,6 +142,7 @@ class RobotModel:
             raise InvalidInput(f"RobotModel {name!r}: negative velocity or torque limit")
 
         self._frame_cache: dict[tuple[str, pin.ReferenceFrame, int], np.ndarray] = {}
+        self._step_cache: dict[Hashable, Any] = {}
         self.q = pin.neutral(model)
         self.v = np.zeros(self.nv)
         self.M = np.zeros((self.nv, self.nv))
@@ -238,6 +242,7 @@ class RobotModel:
         self.q = q.copy()
         self.v = v.copy()
         self._frame_cache.clear()
+        self._step_cache.clear()
         # One pass over the tree (pinocchio's computeAllTerms): joint placements, velocities and
         # accelerations at qdd = 0 (the drift terms of the frames), joint Jacobians, M (upper
         # triangle), h, g, centre of mass, its velocity and Jacobian, A_g and dA_g.
@@ -254,6 +259,20 @@ class RobotModel:
         self.com_velocity = data.vcom[0].copy()
         # Linear rows of dA_g v are the momentum rate m c_ddot at qdd = 0.
         self.com_drift = self.centroidal_drift[:3] / data.mass[0]
+
+    def per_update(self, key: Hashable, compute: Callable[[], T]) -> T:
+        """Return ``compute()``, computed once per :meth:`update` for a given ``key``.
+
+        For quantities derived from the state that several tasks of a step read (e.g. the
+        contact terms of the equation of motion for a layout): the first call computes and
+        keeps the value, later calls until the next update return the same object (treat it as
+        read only). Keys must be hashable and name the quantity and its inputs.
+        """
+        try:
+            return self._step_cache[key]  # type: ignore[no-any-return]
+        except KeyError:
+            value = self._step_cache[key] = compute()
+            return value
 
     # -- whole-body quantities ----------------------------------------------------------------
 

@@ -138,3 +138,25 @@ def test_posture_jacobian_shared_and_read_only(robot: RobotModel) -> None:
     np.testing.assert_array_equal(drift, np.zeros(4))
     with pytest.raises(ValueError, match="read-only"):
         J[0, 0] = 2.0
+
+
+def test_contact_dynamics_shared_per_update_results_independent(robot: RobotModel) -> None:
+    """One ``[M | -J_c^T]`` per update and layout; the rows handed out are writeable copies."""
+    from hqp.tasks.dynamics import contact_dynamics_matrix, joint_torques
+
+    cs = [Contact("foot", "rleg_effector_body")]
+    layout = _layout(robot, cs)
+    rng = np.random.default_rng(6)
+    robot.update(robot.random_configuration(rng), rng.normal(size=robot.nv))
+    G = contact_dynamics_matrix(robot, layout)
+    assert contact_dynamics_matrix(robot, layout) is G and not G.flags.writeable
+    T, _ = torque_map(robot, layout)
+    T[:] = 0.0  # a caller's copy: the shared matrix is untouched
+    assert np.abs(contact_dynamics_matrix(robot, layout)).max() > 0.0
+    x = rng.normal(size=layout.n)
+    J = robot.frame_jacobian("rleg_effector_body")
+    tau = robot.M @ x[: robot.nv] + robot.h - J.T @ x[robot.nv:]
+    np.testing.assert_allclose(joint_torques(robot, layout, x), tau[robot.actuated], rtol=0,
+                               atol=1e-12 * max(1.0, np.abs(tau).max()))
+    robot.update(robot.random_configuration(rng), rng.normal(size=robot.nv))
+    assert contact_dynamics_matrix(robot, layout) is not G

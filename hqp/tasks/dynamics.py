@@ -96,6 +96,38 @@ def generalized_contact_matrix(state: RobotModel, layout: Layout, where: str = "
     return JT
 
 
+def contact_dynamics_matrix(state: RobotModel, layout: Layout, where: str = "") -> np.ndarray:
+    """``[M | -J_1^T ... -J_k^T]`` ``(nv, n)``: the equation of motion's map of ``x``.
+
+    ``M qdd - sum_c J_c^T f_c = S^T tau - h``; its first ``nv_base`` rows are the
+    :class:`FloatingBaseDynamics` rows, the others the :func:`torque_map`. Computed once per
+    update and layout (:meth:`RobotModel.per_update`), shared by the tasks of the step: read
+    only.
+
+    Raises:
+        InvalidFrame: A contact frame is not in the model.
+        InvalidInput: The layout does not match the robot.
+
+    """
+    _check_layout(state, layout, where or "contact_dynamics_matrix")
+    key = ("contact_dynamics_matrix", id(layout))
+    hit = state.per_update(key, lambda: _contact_dynamics(state, layout, where))
+    if hit[0] is not layout:  # an id reused by another layout: recompute
+        hit = _contact_dynamics(state, layout, where)
+    return hit[1]
+
+
+def _contact_dynamics(
+    state: RobotModel, layout: Layout, where: str
+) -> tuple[Layout, np.ndarray]:
+    nv = layout.nv
+    G = np.zeros((nv, layout.n))
+    G[:, :nv] = state.M
+    _contact_columns(state, layout, G, slice(None), where)
+    G.flags.writeable = False
+    return layout, G
+
+
 def torque_map(state: RobotModel, layout: Layout, where: str = "") -> tuple[np.ndarray, np.ndarray]:
     """Actuated torques as an affine map of ``x``: ``tau = T x + t0``.
 
@@ -108,20 +140,15 @@ def torque_map(state: RobotModel, layout: Layout, where: str = "") -> tuple[np.n
         where: Prefix of error messages.
 
     Returns:
-        ``(T, t0)``.
+        ``(T, t0)`` (new arrays).
 
     Raises:
         InvalidFrame: A contact frame is not in the model.
         InvalidInput: The layout does not match the robot.
 
     """
-    _check_layout(state, layout, where or "generalized_contact_matrix")
     act = state.actuated
-    nv = layout.nv
-    T = np.zeros((state.na, nv + sum(slot.kind.value for slot in layout.contacts)))
-    T[:, :nv] = state.M[act]
-    _contact_columns(state, layout, T, act, where)
-    return T, state.h[act].copy()
+    return contact_dynamics_matrix(state, layout, where)[act].copy(), state.h[act].copy()
 
 
 def joint_torques(state: RobotModel, layout: Layout, x: np.ndarray) -> np.ndarray:
@@ -143,11 +170,8 @@ def joint_torques(state: RobotModel, layout: Layout, x: np.ndarray) -> np.ndarra
 
     x = check_array(x, (layout.n,), "joint_torques: x")
     act = state.actuated
-    tau = state.M[act] @ x[: layout.nv] + state.h[act]
-    for slot in layout.contacts:  # no (na, n) matrix: this runs once per servo step
-        J = state.frame_jacobian(slot.frame)[: slot.size]
-        tau -= J[:, act].T @ x[slot.slice]
-    return tau
+    # [M | -J_c^T] of the step, usually already built by the dynamics and torque-limit rows.
+    return contact_dynamics_matrix(state, layout)[act].dot(x) + state.h[act]
 
 
 class FloatingBaseDynamics(Task):
@@ -177,16 +201,12 @@ class FloatingBaseDynamics(Task):
             InvalidInput: The layout does not match the robot.
 
         """
-        where = self.where()
-        _check_layout(state, layout, where)
         nb = state.nv_base
         if nb == 0:
+            _check_layout(state, layout, self.where())
             return Rows()
-        nv = layout.nv
-        A = np.zeros((nb, nv + sum(slot.kind.value for slot in layout.contacts)))
-        A[:, :nv] = state.M[:nb]
-        _contact_columns(state, layout, A, slice(0, nb), where)
-        return Rows(A=A, b=-state.h[:nb])
+        G = contact_dynamics_matrix(state, layout, self.where())
+        return Rows(A=G[:nb].copy(), b=-state.h[:nb])
 
     def torques(self, state: RobotModel, layout: Layout, x: np.ndarray) -> np.ndarray:
         """Actuated torques of a solution (see :func:`joint_torques`)."""
