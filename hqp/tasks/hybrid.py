@@ -149,7 +149,7 @@ class HybridTask(PoseTask):
         return TaskKinematics(
             np.concatenate([full.error[lin], ew[ang]]),
             np.concatenate([full.rate[lin], rate[ang]]),
-            np.vstack([full.jacobian[lin], Jw[ang]]),
+            np.concatenate([full.jacobian[lin], Jw[ang]]),
             np.concatenate([full.drift[lin], drift[ang]]),
         )
 
@@ -181,7 +181,7 @@ class HybridTask(PoseTask):
         k = len(self.force_axes)
         F = np.zeros((k, layout.n))
         F[np.arange(k), slot.start + self._force_index] = 1.0
-        A = F if motion.A is None or motion.A.shape[0] == 0 else np.vstack([motion.A, F])
+        A = F if motion.A is None or motion.A.shape[0] == 0 else np.concatenate([motion.A, F])
         b = self._force.copy() if motion.b is None or motion.b.shape[0] == 0 else np.concatenate(
             [motion.b, self._force])
         return Rows(A=A, b=b)

@@ -148,7 +148,7 @@ class PoseTask(TrackingTask):
         return TaskKinematics(
             np.concatenate([p - g.position[:3, 3], rot.error]),
             np.concatenate([v - g.velocity[:3], rot.rate]),
-            np.vstack([J, rot.jacobian]),
+            np.concatenate([J, rot.jacobian]),
             np.concatenate([a - g.acceleration[:3], rot.drift]),
         )
 
