@@ -268,7 +268,7 @@ class Contact(Task):
             self._error = np.zeros(0)
             return Rows(A=A, b=np.zeros(k))
         A[:, : layout.nv] = state.frame_jacobian(self.frame)[:k]
-        b = -state.frame_drift(self.frame)[:k].copy()
+        b = -state.frame_drift(self.frame)[:k]  # a new array
         if self.kd > 0.0:
             b -= self.kd * state.frame_velocity(self.frame)[:k]
         if self.kp > 0.0:
