@@ -675,6 +675,168 @@ def law_problem(built: object, stack: object, nv: int) -> _LawProblem:
     return _LawProblem(support, levels, names, built_levels, task_rows, tuple(skipped))
 
 
+# ------------------------------------------------------------------------------------------------
+# The support constraint as an activation zone (centre of pressure of the feet)
+# ------------------------------------------------------------------------------------------------
+
+SUPPORT_ZONE = 0.8
+"""Default fraction of each contact's centre-of-pressure box (``half_length`` x ``half_width``)
+inside which the law's centre of pressure may move freely (:class:`NullSpaceController`)."""
+
+TORQUE_ZONE = 0.95
+"""Default fraction of the torque limits beyond which a joint's torque is held at the zone's
+border (:class:`NullSpaceController`)."""
+
+
+def support_polygon(
+    model: RobotModel, contacts: Sequence[object], scale: float
+) -> tuple[np.ndarray, float]:
+    """Convex hull of the contacts' centre-of-pressure boxes, scaled by ``scale``.
+
+    A surface contact contributes the four corners ``p + R [+-scale hl, +-scale hw, 0]`` of its
+    box (``hl``, ``hw`` its ``half_length``, ``half_width``), a point contact its origin.
+
+    Args:
+        model: The updated robot model.
+        contacts: :class:`~hqp.tasks.contact.Contact` tasks (active ones).
+        scale: Fraction of each box (``> 0``).
+
+    Returns:
+        ``(hull (k, 2) counter-clockwise [m], height [m])``: the hull's vertices in the
+        horizontal plane and the mean height of the contact points (the plane of the centre of
+        pressure).
+
+    """
+    from hqp.layout import ContactType
+
+    pts = []
+    for c in contacts:
+        T = model.frame_placement(c.frame)  # type: ignore[attr-defined]
+        p, R = T.translation, T.rotation
+        if c.kind is ContactType.SURFACE:  # type: ignore[attr-defined]
+            hl = scale * float(getattr(c, "half_length", 0.0))
+            hw = scale * float(getattr(c, "half_width", 0.0))
+            for sx, sy in ((1, 1), (-1, 1), (-1, -1), (1, -1)):
+                pts.append(p + R @ np.array([sx * hl, sy * hw, 0.0]))
+        else:
+            pts.append(np.array(p, dtype=float))
+    P = np.array(pts)
+    return _convex_hull(P[:, :2]), float(P[:, 2].mean())
+
+
+def _convex_hull(points: np.ndarray) -> np.ndarray:
+    """Counter-clockwise convex hull ``(k, 2)`` of ``(n, 2)`` points (monotone chain)."""
+    pts = sorted({(float(x), float(y)) for x, y in points})
+    if len(pts) <= 2:
+        return np.array(pts)
+
+    def cross(o: tuple, a: tuple, b: tuple) -> float:
+        return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
+
+    lower: list[tuple] = []
+    for q in pts:
+        while len(lower) >= 2 and cross(lower[-2], lower[-1], q) <= 0.0:
+            lower.pop()
+        lower.append(q)
+    upper: list[tuple] = []
+    for q in reversed(pts):
+        while len(upper) >= 2 and cross(upper[-2], upper[-1], q) <= 0.0:
+            upper.pop()
+        upper.append(q)
+    return np.array(lower[:-1] + upper[:-1])
+
+
+def project_to_polygon(point: np.ndarray, hull: np.ndarray) -> tuple[np.ndarray, bool]:
+    """Closest point of a convex polygon to ``point`` ``(2,)``, and whether it was inside.
+
+    Args:
+        point: ``(2,)`` [m].
+        hull: Counter-clockwise vertices ``(k, 2)`` (:func:`support_polygon`).
+
+    """
+    k = hull.shape[0]
+    if k == 0:
+        return point.copy(), False
+    if k == 1:
+        return hull[0].copy(), bool(np.allclose(point, hull[0]))
+    inside = True
+    best, best_d = hull[0].copy(), np.inf
+    for i in range(k):
+        a, b = hull[i], hull[(i + 1) % k]
+        e = b - a
+        if k > 2 and e[0] * (point[1] - a[1]) - e[1] * (point[0] - a[0]) < 0.0:
+            inside = False
+        s = float(np.clip(np.dot(point - a, e) / max(float(np.dot(e, e)), 1e-300), 0.0, 1.0))
+        c = a + s * e
+        d = float(np.linalg.norm(point - c))
+        if d < best_d:
+            best, best_d = c, d
+    if inside and k > 2:
+        return point.copy(), True
+    return best, False
+
+
+def support_moment_rows(
+    model: RobotModel, point: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Rows on ``qdd`` that put the centre of pressure of the support at ``point``.
+
+    The contact wrench resultant follows from the centroidal momentum rate
+    ``hdot = A_g qdd + dA_g v`` (about the centre of mass ``c``, world axes):
+    ``F = hdot_lin - m g`` (``g`` the gravity vector) and ``M_c = hdot_ang``. Its moment about
+    ``p`` is ``M_p = M_c + (c - p) x F``; the centre of pressure is at ``p`` when the two
+    horizontal components of ``M_p`` vanish. Both rows are linear in ``qdd``, divided by the
+    robot's weight ``m |g|`` (a residual reads as [m] at nominal load).
+
+    Args:
+        model: The updated robot model.
+        point: ``(3,)`` the point ``p`` [m] (on the plane of the contacts).
+
+    Returns:
+        ``(J (2, nv), a (2,))`` with ``J qdd = a`` meaning ``M_p,x = M_p,y = 0``.
+
+    """
+    Ag = model.centroidal_matrix
+    d = model.centroidal_drift
+    m = model.mass
+    g = model.gravity_vector
+    r = model.com - np.asarray(point, dtype=float)
+    rx = np.array([[0.0, -r[2], r[1]], [r[2], 0.0, -r[0]], [-r[1], r[0], 0.0]])
+    # M_p = Ag_ang qdd + d_ang + r x (Ag_lin qdd + d_lin - m g)
+    J = Ag[3:] + rx @ Ag[:3]
+    c = d[3:] + rx @ (d[:3] - m * g)
+    scale = 1.0 / (m * max(float(np.linalg.norm(g)), 1e-12))
+    return scale * J[:2], -scale * c[:2]
+
+
+def center_of_pressure(
+    model: RobotModel, qdd: np.ndarray, height: float
+) -> tuple[np.ndarray, float]:
+    """Centre of pressure of the support wrench that produces ``qdd``, and its normal force.
+
+    The resultant is that of :func:`support_moment_rows` (centroidal momentum rate).
+
+    Args:
+        model: The updated robot model.
+        qdd: Joint accelerations ``(nv,)``.
+        height: Height of the plane of the centre of pressure [m].
+
+    Returns:
+        ``(cop (2,) [m], F_z [N])``; ``cop`` is ``nan`` when ``F_z <= 0`` (a pulling support).
+
+    """
+    hd = model.centroidal_matrix @ qdd + model.centroidal_drift
+    F = hd[:3] - model.mass * model.gravity_vector
+    Mc = hd[3:]
+    c = model.com
+    dz = c[2] - height
+    if F[2] <= 1e-9:
+        return np.array([np.nan, np.nan]), float(F[2])
+    px = c[0] - (Mc[1] + dz * F[0]) / F[2]
+    py = c[1] - (dz * F[1] - Mc[0]) / F[2]
+    return np.array([px, py]), float(F[2])
+
+
 def _controller_base() -> type:
     from hqp.controller import WholeBodyController
 
@@ -743,6 +905,9 @@ class NullSpaceController(_controller_base()):  # type: ignore[misc]
         final_metric: np.ndarray | None = None,
         final_target: np.ndarray | None = None,
         diagnostics: str = "full",
+        support_zone: float | None = None,
+        torque_zone: float | None = None,
+        zone_passes: int = 4,
     ) -> None:
         from hqp.stack import Stack
         from hqp.tasks.base import Category
@@ -767,8 +932,30 @@ class NullSpaceController(_controller_base()):  # type: ignore[misc]
             raise InvalidInput(
                 f"NullSpaceController: method must be 'whitened' or 'literal', got {method!r}"
             )
+        if support_zone is not None and not (np.isfinite(support_zone) and support_zone > 0.0):
+            raise InvalidInput(
+                f"NullSpaceController: support_zone must be > 0 or None, got {support_zone}"
+            )
         self.backend = "nullspace"
         self.algorithm = "nullspace"
+        if torque_zone is not None and not (np.isfinite(torque_zone) and 0.0 < torque_zone <= 1.0):
+            raise InvalidInput(
+                f"NullSpaceController: torque_zone must be in (0, 1] or None, got {torque_zone}"
+            )
+        if int(zone_passes) < 1:
+            raise InvalidInput(f"NullSpaceController: zone_passes must be >= 1, got {zone_passes}")
+        self.support_zone = None if support_zone is None else float(support_zone)
+        self.torque_zone = None if torque_zone is None else float(torque_zone)
+        self.zone_passes = int(zone_passes)
+        self.torques_held: tuple[int, ...] = ()
+        self.torque_release = 0.9
+        self._held_before = np.zeros(0, dtype=int)
+        """Actuated joints whose torque was held at its zone's border at the last step."""
+        self.support_active = False
+        """Whether the support constraint was active at the last step."""
+        self.last_cop: np.ndarray | None = None
+        """Centre of pressure ``(2,)`` [m] the plain law asked for at the last step (``None``
+        without support or with ``support_zone=None``)."""
         self.eig_tol = float(eig_tol)
         self.internal_forces = internal_forces
         self.method = method
@@ -789,14 +976,14 @@ class NullSpaceController(_controller_base()):  # type: ignore[misc]
 
         m = self.model
         self.last_law = None
+        self.support_active = False
+        self.torques_held = ()
+        self.last_cop = None
         self.last_problem = problem = law_problem(built, self.stack, m.nv)
         try:
-            law = prioritized_torques(
-                m.M, m.h, problem.levels,
-                S=m.selection() if m.nv_base else None,
-                support=problem.support, names=problem.names, eig_tol=self.eig_tol,
-                internal_forces=self.internal_forces, method=self.method,
-            )
+            law = self._law(problem)
+            law, problem = self._constraint_zones(law, problem, notes)
+            self.last_problem = problem
         except (HQPError, np.linalg.LinAlgError) as exc:
             notes.append(f"law failed: {exc}")
             logger.warning("t=%.4f: null-space law failed (%s); safe command sent", t, exc)
@@ -806,6 +993,113 @@ class NullSpaceController(_controller_base()):  # type: ignore[misc]
             notes.append("law returned non-finite values")
             return None
         return self._decision_vector(law, problem), law.tau.copy()
+
+    def _law(self, problem: _LawProblem) -> LawSolution:
+        """Apply the law (:func:`prioritized_torques`) to the law's view of the stack."""
+        m = self.model
+        return prioritized_torques(
+            m.M, m.h, problem.levels,
+            S=m.selection() if m.nv_base else None,
+            support=problem.support, names=problem.names, eig_tol=self.eig_tol,
+            internal_forces=self.internal_forces, method=self.method,
+        )
+
+    def _constraint_zones(
+        self, law: LawSolution, problem: _LawProblem, notes: list[str]
+    ) -> tuple[LawSolution, _LawProblem]:
+        """Contact and actuation limits as activation zones at the top of the task hierarchy.
+
+        The law has no inequalities; the papers handle a constraint by an activation zone: once
+        the motion enters the zone, equality rows hold it at the zone's border at the top of
+        the hierarchy (seed 003 eq. 10-12, 25; the joint-limit zones are the seed's example).
+        Here the same is done, at one level above the joint-limit zones (the contact and
+        actuation limits are above the joint limits, as in the HQP stack), for:
+
+        * the support: the centre of pressure ``z`` of the support wrench that the law's
+          accelerations need (:func:`center_of_pressure`) must stay in the hull of the active
+          contacts' centre-of-pressure boxes scaled by ``support_zone``
+          (:func:`support_polygon`); outside (or when the support would pull), the two rows of
+          :func:`support_moment_rows` hold it at the closest point of that zone;
+        * the torques: a joint whose torque exceeds ``torque_zone * tau_max`` gets the row
+          ``tau_j(qdd) = +-torque_zone * tau_max_j`` (``tau = Phi^+ S (qdd - qdd_0) + tau_int``,
+          module docstring; the internal-force part ``tau_int`` is taken from the last pass).
+
+        The law is applied again with these rows, up to ``zone_passes`` times, adding the
+        joints that still leave their zone (rows are only added within a step).
+
+        Returns:
+            The final law solution and the problem it solved.
+
+        """
+        if self.support_zone is None and self.torque_zone is None:
+            return law, problem
+        m = self.model
+        hull = None
+        height = 0.0
+        if self.support_zone is not None and problem.support is not None:
+            contacts = [
+                t for t in (self.stack.task(n) for n in self.stack.active_contacts)
+                if hasattr(t, "frame")
+            ]
+            if contacts:
+                hull, height = support_polygon(m, contacts, self.support_zone)
+        S = m.selection() if m.nv_base else np.eye(m.nv)
+        held: set[int] = set()
+        rows: list[tuple[np.ndarray, np.ndarray]] = []
+        support_held = False
+        base = problem
+        for _ in range(self.zone_passes):
+            new: list[tuple[np.ndarray, np.ndarray]] = []
+            if hull is not None and not support_held:
+                cop, fz = center_of_pressure(m, law.qdd, height)
+                if self.last_cop is None:
+                    self.last_cop = cop
+                target = None
+                if fz > 0.0:  # (a pulling support is beyond what these rows can repair)
+                    point, inside = project_to_polygon(cop, hull)
+                    if not inside:
+                        target = point
+                if target is not None:
+                    new.append(support_moment_rows(m, np.array([target[0], target[1], height])))
+                    support_held = True
+                    self.support_active = True
+            if self.torque_zone is not None:
+                limit = self.torque_zone * m.tau_max
+                beyond = np.abs(law.tau) > limit
+                if not rows:  # hysteresis: joints held at the last step stay held near the border
+                    beyond |= np.isin(np.arange(m.na), self._held_before) & (
+                        np.abs(law.tau) > self.torque_release * limit)
+                over = [j for j in np.flatnonzero(beyond) if j not in held]
+                if over:
+                    G = law.phi_pinv @ S  # tau_plain = G (qdd - qdd0)
+                    for j in over:
+                        scale = 1.0 / max(float(m.tau_max[j]), 1e-9)
+                        target_j = np.sign(law.tau[j]) * limit[j] - law.tau_internal[j]
+                        new.append((scale * G[j:j + 1], scale * np.array(
+                            [target_j + float(G[j] @ law.qdd0)])))
+                        held.add(int(j))
+                    self.torques_held = tuple(sorted(held))
+            if not new:
+                break
+            rows.extend(new)
+            J = np.vstack([r[0] for r in rows])
+            a = np.concatenate([r[1] for r in rows])
+            problem = _LawProblem(
+                base.support,
+                [(J, a), *base.levels],
+                ["constraint_zones", *base.names],
+                [0, *base.built_levels],
+                {k: (i + 1, Jt, at) for k, (i, Jt, at) in base.task_rows.items()},
+                base.skipped,
+            )
+            law = self._law(problem)
+        self._held_before = np.array(sorted(held), dtype=int)
+        if support_held:
+            notes.append("support zone active: centre of pressure held at its zone's border")
+        if held:
+            names = ", ".join(m.joint_names[j] for j in sorted(held))
+            notes.append(f"torque zone active: {names} held at {self.torque_zone:g} x tau_max")
+        return law, problem
 
     def _feasibility(
         self, built: BuiltStack, x: np.ndarray | None, notes: list[str]

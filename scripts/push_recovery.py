@@ -1,4 +1,4 @@
-"""Find the largest horizontal push a standing robot survives under the HQP controller.
+"""Find the largest horizontal push a standing robot survives (HQP controller or null-space law).
 
 A push is a constant horizontal force on the floating base for ``--push-duration`` seconds,
 starting at ``--push-at``; the run continues until ``--duration`` and the robot survives when
@@ -9,6 +9,7 @@ direction; the result (and every run) is printed as JSON on stdout, progress on 
 Not run in CI (minutes of simulation). Example::
 
     OMP_NUM_THREADS=1 python scripts/push_recovery.py --robot paper-humanoid --directions 0 90
+    OMP_NUM_THREADS=1 python scripts/push_recovery.py --controller nullspace
 """
 
 from __future__ import annotations
@@ -25,11 +26,12 @@ def survives(robot_name: str, force: float, angle_deg: float, args: argparse.Nam
     import numpy as np
 
     import hqp.robots as robots
-    from hqp.controller import standing_controller
+    from hqp.nullspace import make_standing_controller
     from hqp.sim import Push, simulate
 
     robot = robots.load(robot_name)
-    controller = standing_controller(robot, backend=args.backend, diagnostics="residuals")
+    controller = make_standing_controller(args.controller, robot, backend=args.backend,
+                                          diagnostics="residuals")
     a = math.radians(angle_deg)
     push = Push(args.push_at, (force * math.cos(a), force * math.sin(a), 0.0), args.push_duration)
     start = time.perf_counter()
@@ -59,7 +61,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--duration", type=float, default=2.0, help="length of each run [s]")
     p.add_argument("--max-force", type=float, default=800.0, help="upper end of the search [N]")
     p.add_argument("--tolerance", type=float, default=10.0, help="bisection resolution [N]")
-    p.add_argument("--backend", default="proxsuite")
+    p.add_argument("--backend", default="proxsuite", help="QP backend of the HQP controller")
+    p.add_argument("--controller", default="hqp", choices=("hqp", "nullspace"),
+                   help="standing controller: HQP or the papers' null-space law")
     args = p.parse_args(argv)
 
     results = []
@@ -87,7 +91,8 @@ def main(argv: list[str] | None = None) -> int:
                         "smallest_fallen_n": hi if lo < hi else None, "runs": runs})
     print(json.dumps({"robot": args.robot, "push_duration_s": args.push_duration,
                       "push_at_s": args.push_at, "run_duration_s": args.duration,
-                      "backend": args.backend, "directions": results}, indent=1))
+                      "controller": args.controller, "backend": args.backend,
+                      "directions": results}, indent=1))
     return 0
 
 
