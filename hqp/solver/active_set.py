@@ -35,6 +35,7 @@ optimal one), or, cold, from the least-squares point.
 from __future__ import annotations
 
 import numpy as np
+from scipy.optimize import nnls
 
 from hqp.solver.linalg import _dgeqp3, _dorgqr, _dtrtrs, lstsq
 
@@ -161,6 +162,7 @@ def solve_guess(
         held = np.flatnonzero(w) if p else _NO_ROWS
         nheld = held.size
         rk = 0
+        dep_g = _NO_ROWS
         if me or nheld:
             if nheld:
                 wp = w[held] > 0
@@ -196,9 +198,14 @@ def solve_guess(
             else:
                 vp = np.zeros(nv)
             if rk < nk:
+                # dependent held rows get no multiplier: equality rows must be
+                # consistent, carried rows only within their bounds (checked below)
                 dep = piv[rk:]
-                if (np.abs(K[dep] @ vp - k[dep]) > CONSISTENCY_TOL * ks[dep]).any():
+                dep_e = dep[dep < me]
+                if dep_e.size and (np.abs(K[dep_e] @ vp - k[dep_e])
+                                   > CONSISTENCY_TOL * ks[dep_e]).any():
                     return None, Guess(s, w), it + 1
+                dep_g = held[dep[dep >= me] - me]
             Q2 = Q[:, rk:]
             if M.shape[0] and rk < nv:
                 MQ = M @ Q2
@@ -240,7 +247,10 @@ def solve_guess(
             gv = G @ v
             over = gv > gu_in
             under = gv < gl_in
-            viol = (over | under) & (w == 0)
+            free = w == 0
+            if dep_g.size:
+                free[dep_g] = True
+            viol = (over | under) & free
             wrong = None
             if rk and nheld:
                 grad = M.T @ (M @ v - d)
@@ -250,7 +260,8 @@ def solve_guess(
                 dtol = DUAL_TOL * max(1.0, float(np.abs(M).max()) * max(1.0, float(
                     np.abs(d).max()))) if M.size else DUAL_TOL
                 bad_mu = np.where(wp, mug < -dtol, mug > dtol)
-                if bad_mu.any():
+                if bad_mu.any() and not (rk < K.shape[0] and _signed_multipliers(
+                        K, me, wp, grad, dtol)):
                     wrong = held[bad_mu]
             if wrong is not None or viol.any():
                 ok = False
@@ -263,6 +274,26 @@ def solve_guess(
         s = s_new
         w = w_new
     return None, Guess(s, w), len(seen)
+
+
+def _signed_multipliers(
+    K: np.ndarray, me: int, wp: np.ndarray, grad: np.ndarray, dtol: float
+) -> bool:
+    """Whether multipliers of the right signs exist for dependent held rows.
+
+    With dependent held rows (a degenerate vertex: more rows held than the
+    rank) the multipliers are not unique, and the triangular solve picks one
+    set; the KKT conditions only need *some* set with the right signs:
+    ``K^T mu = -grad`` with ``mu`` free on the ``me`` equality rows, ``>= 0`` on
+    rows held at their upper bound and ``<= 0`` at their lower bound. Found by
+    non-negative least squares on the sign-adjusted rows.
+    """
+    sign = np.where(wp, 1.0, -1.0)
+    cols = [K[me:].T * sign]
+    if me:
+        cols = [K[:me].T, -K[:me].T] + cols
+    _mu, res = nnls(np.concatenate(cols, axis=1), -grad, maxiter=50 * K.shape[0])
+    return bool(res <= dtol * max(1.0, np.sqrt(grad.size)))
 
 
 def guess_from_point(

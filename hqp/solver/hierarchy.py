@@ -414,7 +414,15 @@ class HierarchicalSolver:
             bk = b - A @ x
             # 1. least squares on the equality rows (pivoted QR of the projected matrix)
             fact = None
-            if kind == _Internal.NORM:
+            warm = self._guess(k, mi, gid, total_in) if self.warm_start and (
+                mi or carried) else None
+            deferred = warm is not None and (warm.s.any() or warm.w.any())
+            if deferred:
+                # the previous solve needed this level's inequalities: go straight
+                # to its active set (3a); the null space is computed in 4.
+                y = None
+                null = None
+            elif kind == _Internal.NORM:
                 # A = I and Z orthonormal: (I Z)^+ = Z^T; nothing is left free afterwards.
                 y = bk if Z is None else Z.T @ bk
                 null = np.zeros((r, 0))
@@ -427,8 +435,8 @@ class HierarchicalSolver:
                 null = None
             xl = x.copy() if y is None else x + (y if Z is None else Z @ y)
             # 2. does the least-squares point satisfy the inequalities?
-            feasible = True
-            if mi:
+            feasible = not deferred
+            if mi and feasible:
                 cx = C @ xl
                 feasible = _within(cx, lv.lower, lv.upper, lv.lo_scale, lv.up_scale)
             if feasible and carried:
@@ -448,7 +456,7 @@ class HierarchicalSolver:
                 # verified by the optimality conditions
                 y = None
                 if self.warm_start:
-                    guess = self._guess(k, mi, gid, total_in)
+                    guess = warm
                     if guess is None:
                         # cold: the least-squares point's violated rows
                         ref = xl - x if Z is None else Z.T @ (xl - x)
@@ -529,6 +537,12 @@ class HierarchicalSolver:
                     Cv if Z is None else Cv @ Z)
                 scale = max(lv.a_scale, float(np.abs(Cv).max()))
                 null = _PivotedQR(E, rank_tol, scale).null()
+            elif deferred:
+                if kind == _Internal.NORM:
+                    null = np.zeros((r, 0))
+                elif me:
+                    fact = _PivotedQR(Ak, rank_tol, lv.a_scale)
+                    null = fact.null()
             x = xl
             if null is not None:
                 Z = null if Z is None else Z @ null
@@ -569,6 +583,15 @@ class HierarchicalSolver:
         G = np.zeros((0, n))  # held inequality rows of earlier levels
         gl = np.zeros(0)
         gu = np.zeros(0)
+        gls = np.zeros(0)  # their tolerance scales
+        gus = np.zeros(0)
+        gid = _NO_ROWS  # their index among all inequality rows of the hierarchy
+        total_in = 0
+        offsets = []
+        for lv, _kind in all_levels:
+            offsets.append(total_in)
+            total_in += lv.m_in
+        rank_tol = self.rank_tol
         times: list[float] = []
         qp_count = 0
         for k, (lv, _kind) in enumerate(all_levels):
@@ -580,26 +603,41 @@ class HierarchicalSolver:
                 continue
             p = G.shape[0]
             q = E.shape[0]
-            nv = n + mi
-            H = np.zeros((nv, nv))
-            H[:n, :n] = A.T @ A
-            H[np.arange(n, nv), np.arange(n, nv)] = 1.0
-            g = np.zeros(nv)
-            g[:n] = -(A.T @ b)
-            Eq = np.zeros((q, nv))
-            Eq[:, :n] = E
-            Cq = np.zeros((p + mi, nv))
-            Cq[:p, :n] = G
-            Cq[p:, :n] = C
-            Cq[np.arange(p, p + mi), np.arange(n, nv)] = -1.0
-            lo = np.concatenate([gl, lv.lower])
-            up = np.concatenate([gu, lv.upper])
-            # Earlier equality rows are held at their values at the current point,
-            # which lies in their optimal set: redundant rows stay consistent.
-            v, ok = _qp(backend, ("cascade", k), H, g,
-                                  Eq if q else None, E @ x if q else None,
-                                  Cq if p + mi else None, lo, up)
-            qp_count += 1
+            slot = ("cascade", k)
+            v = None
+            if self.warm_start:
+                # the same active-set warm start as the basis algorithm (full x)
+                guess = self._guess(slot, mi, gid, total_in)
+                if guess is None:
+                    guess = Guess(np.zeros(mi, dtype=np.int8), np.zeros(p, dtype=np.int8))
+                    ref = x
+                else:
+                    ref = self._points[slot]
+                xv, guess, _its = solve_guess(
+                    A, b, C, lv.lower, lv.upper, lv.lo_scale, lv.up_scale,
+                    E if q else None, E @ x if q else None, G if p else None, gl, gu, gls, gus,
+                    guess, rank_tol, max(lv.a_scale, lv.c_scale), ref=ref)
+                if xv is not None:
+                    v = xv
+                    ok = True
+            if v is None:
+                v, ok = self._cascade_qp(slot, lv, n, E, x, G, gl, gu)
+                qp_count += 1
+                if self.warm_start and np.isfinite(v).all():
+                    xq = v[:n]
+                    guess = guess_from_point(C @ xq if mi else None, lv.lower, lv.upper,
+                                             lv.lo_scale, lv.up_scale, G @ xq if p else None,
+                                             gl, gu, gls, gus, ACTIVE_TOL)
+                    xp, guess2, _its = solve_guess(
+                        A, b, C, lv.lower, lv.upper, lv.lo_scale, lv.up_scale,
+                        E if q else None, E @ x if q else None, G if p else None, gl, gu,
+                        gls, gus, guess, rank_tol, max(lv.a_scale, lv.c_scale),
+                        max_iter=POLISH_ITER, ref=xq)
+                    if xp is not None:
+                        v, guess, ok = xp, guess2, True
+            if self.warm_start:
+                self._remember(slot, guess, gid, total_in)
+                self._points[slot] = v[:n].copy()
             if not ok:
                 logger.debug("level %d: backend %s did not converge", k, backend.name)
             if not np.all(np.isfinite(v)):
@@ -621,8 +659,40 @@ class HierarchicalSolver:
                     [gl, np.minimum(lv.lower[keep], cx) - CARRY_MARGIN * lv.lo_scale[keep]])
                 gu = np.concatenate(
                     [gu, np.maximum(lv.upper[keep], cx) + CARRY_MARGIN * lv.up_scale[keep]])
+                gls = np.concatenate((gls, lv.lo_scale[keep]))
+                gus = np.concatenate((gus, lv.up_scale[keep]))
+                gid = np.concatenate((gid, offsets[k] + np.flatnonzero(keep)))
             times.append(time.perf_counter() - t0)
         return x, qp_count, times
+
+    def _cascade_qp(
+        self, slot: Any, lv: CheckedLevel, n: int, E: np.ndarray, x: np.ndarray,
+        G: np.ndarray, gl: np.ndarray, gu: np.ndarray,
+    ) -> tuple[np.ndarray, bool]:
+        """Solve the cascade's level QP over ``(x, slacks)`` through the backend."""
+        A, b, C = lv.A, lv.b, lv.C
+        mi = C.shape[0]
+        p = G.shape[0]
+        q = E.shape[0]
+        nv = n + mi
+        H = np.zeros((nv, nv))
+        H[:n, :n] = A.T @ A
+        H[np.arange(n, nv), np.arange(n, nv)] = 1.0
+        g = np.zeros(nv)
+        g[:n] = -(A.T @ b)
+        Eq = np.zeros((q, nv))
+        Eq[:, :n] = E
+        Cq = np.zeros((p + mi, nv))
+        Cq[:p, :n] = G
+        Cq[p:, :n] = C
+        Cq[np.arange(p, p + mi), np.arange(n, nv)] = -1.0
+        lo = np.concatenate([gl, lv.lower])
+        up = np.concatenate([gu, lv.upper])
+        # Earlier equality rows are held at their values at the current point,
+        # which lies in their optimal set: redundant rows stay consistent.
+        return _qp(self._backend, slot, H, g,
+                   Eq if q else None, E @ x if q else None,
+                   Cq if p + mi else None, lo, up)
 
 
 def solve(

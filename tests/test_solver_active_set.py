@@ -1,0 +1,161 @@
+"""The active-set warm start (hqp.solver.active_set) against QPs and against cold solves."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+import quadprog
+from test_solver import RANDOM_SHAPES, cost_tol, level_cost, quadprog_cascade, random_levels
+
+from hqp.bench.problems import random_hierarchy
+from hqp.bench.solver_suite import drifting, level_specs
+from hqp.solver import ALGORITHMS, HierarchicalSolver, Level, available_backends
+from hqp.solver.active_set import Guess, guess_from_point, solve_guess
+
+BACKENDS = available_backends()
+
+
+@pytest.fixture(autouse=True)
+def _quiet():
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        yield
+
+
+def _level_qp(A, b, C, lo, up, G, gl, gu):
+    """Reference optimal cost of ``||A v - b||^2 + ||dist(C v, [lo, up])||^2`` s.t.
+    ``gl <= G v <= gu``, by quadprog over ``(v, w)`` with a 1e-10 regularisation."""
+    nv, mi = A.shape[1], C.shape[0]
+    H = np.zeros((nv + mi, nv + mi))
+    H[:nv, :nv] = A.T @ A + 1e-10 * np.eye(nv)
+    H[nv:, nv:] = np.eye(mi)
+    f = np.r_[A.T @ b, np.zeros(mi)]
+    rows, rhs = [], []
+    for i in range(mi):
+        u = np.zeros(mi)
+        u[i] = -1.0
+        rows += [np.r_[C[i], u], np.r_[-C[i], -u]]
+        rhs += [lo[i], -up[i]]
+    for i in range(G.shape[0]):
+        rows += [np.r_[G[i], np.zeros(mi)], np.r_[-G[i], np.zeros(mi)]]
+        rhs += [gl[i], -gu[i]]
+    v = quadprog.solve_qp(H, f, np.array(rows).T, np.array(rhs))[0][:nv]
+    cv = C @ v
+    d = np.maximum(cv - up, 0.0) + np.minimum(cv - lo, 0.0)
+    r = A @ v - b
+    return float(r @ r + d @ d)
+
+
+def _random_level_problem(rng, nv=8, ma=3, mc=6, p=5):
+    A = rng.standard_normal((ma, nv))
+    b = 3.0 * rng.standard_normal(ma)
+    C = rng.standard_normal((mc, nv))
+    centre = rng.standard_normal(mc)
+    lo = centre - rng.uniform(0.1, 0.5, mc)
+    up = centre + rng.uniform(0.1, 0.5, mc)
+    G = rng.standard_normal((p, nv))
+    gc = rng.uniform(-0.2, 0.2, p)  # contains v = 0
+    gl = gc - rng.uniform(0.3, 1.0, p)
+    gu = gc + rng.uniform(0.3, 1.0, p)
+    return A, b, C, lo, up, G, gl, gu
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_verified_guess_is_the_level_optimum(seed):
+    """A point accepted by the KKT check has the QP's optimal cost and is feasible."""
+    rng = np.random.default_rng(seed)
+    A, b, C, lo, up, G, gl, gu = _random_level_problem(rng)
+    ones_c, ones_g = np.ones(C.shape[0]), np.ones(G.shape[0])
+    ref_cost = _level_qp(A, b, C, lo, up, G, gl, gu)
+    # cold: from the least-squares point
+    v0 = np.linalg.lstsq(A, b, rcond=None)[0]
+    guess = guess_from_point(C @ v0, lo, up, ones_c, ones_c, G @ v0, gl, gu, ones_g, ones_g,
+                             -1e-9)
+    v, guess, _its = solve_guess(A, b, C, lo, up, ones_c, ones_c, None, None, G, gl, gu,
+                                 ones_g, ones_g, guess, 1e-9, 1.0, max_iter=20)
+    if v is None:
+        pytest.skip("the active-set updates did not settle (the backend QP would run)")
+    cv = C @ v
+    d = np.maximum(cv - up, 0.0) + np.minimum(cv - lo, 0.0)
+    r = A @ v - b
+    cost = float(r @ r + d @ d)
+    assert abs(cost - ref_cost) <= 1e-7 * max(1.0, ref_cost), (cost, ref_cost)
+    assert np.all(G @ v >= gl - 1e-9) and np.all(G @ v <= gu + 1e-9)
+    # the verified guess, given again, is accepted at once with the same point
+    v2, _g, its = solve_guess(A, b, C, lo, up, ones_c, ones_c, None, None, G, gl, gu,
+                              ones_g, ones_g, guess, 1e-9, 1.0)
+    assert its == 1
+    np.testing.assert_allclose(v2, v, atol=1e-10)
+
+
+def test_wrong_guess_is_rejected_or_corrected():
+    """Holding a row whose multiplier has the wrong sign is not accepted as optimal."""
+    # min (v - 2)^2 s.t. -1 <= v <= 1: optimum v = 1 (upper bound held).
+    A, b = np.array([[1.0]]), np.array([2.0])
+    C = np.zeros((0, 1))
+    G, gl, gu = np.array([[1.0]]), np.array([-1.0]), np.array([1.0])
+    e0, one = np.zeros(0), np.ones(1)
+    wrong = Guess(np.zeros(0, dtype=np.int8), np.array([-1], dtype=np.int8))  # lower held
+    v, _g, _its = solve_guess(A, b, C, e0, e0, e0, e0, None, None, G, gl, gu, one, one,
+                              wrong, 1e-9, 1.0, max_iter=0)
+    assert v is None
+    v, g, _its = solve_guess(A, b, C, e0, e0, e0, e0, None, None, G, gl, gu, one, one,
+                             wrong, 1e-9, 1.0)
+    np.testing.assert_allclose(v, [1.0], atol=1e-12)
+    assert g.w.tolist() == [1]
+
+
+def test_stale_guess_at_an_infinite_bound_is_harmless():
+    A, b = np.array([[1.0, 0.0]]), np.array([1.0])
+    C = np.array([[0.0, 1.0]])
+    lo, up = np.array([-np.inf]), np.array([0.5])
+    one = np.ones(1)
+    stale = Guess(np.array([-1], dtype=np.int8), np.zeros(0, dtype=np.int8))
+    v, _g, _its = solve_guess(A, b, C, lo, up, one, one, None, None, None, None, None, None,
+                              None, stale, 1e-9, 1.0)
+    assert v is not None and np.isfinite(v).all()
+    np.testing.assert_allclose(A @ v, b, atol=1e-12)
+    assert C @ v <= up + 1e-12
+
+
+@pytest.mark.parametrize("algorithm", ALGORITHMS)
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_warm_start_matches_cold_solves_on_a_drifting_sequence(backend, algorithm):
+    """A persistent warm-started solver gives the costs of fresh solves without it."""
+    if backend == "osqp":
+        pytest.skip("OSQP's accuracy (1e-6 relative) is checked elsewhere")
+    rng = np.random.default_rng(7)
+    base = random_hierarchy(rng, 20, level_specs(20, 4))
+    warm = HierarchicalSolver(backend, algorithm, warm_start=True)
+    qps = {"warm": 0, "cold": 0}
+    for levels in drifting(base, 12, rng):
+        a = warm.solve(levels)
+        b = HierarchicalSolver(backend, algorithm, warm_start=False).solve(levels)
+        tol = cost_tol(b.costs)
+        assert np.all(np.abs(a.costs - b.costs) <= tol), (a.costs, b.costs)
+        np.testing.assert_allclose(a.x, b.x, atol=1e-5)
+        qps["warm"] += a.qp_count
+        qps["cold"] += b.qp_count
+    # in a control loop the warm start settles most level QPs without the backend
+    assert qps["warm"] <= 0.25 * qps["cold"], qps
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_warm_started_solver_against_independent_cascade(seed):
+    rng = np.random.default_rng(300 + seed)
+    n = 10
+    solvers = {a: HierarchicalSolver("proxsuite", a) for a in ALGORITHMS}
+    for step in range(3):
+        levels = random_levels(rng, n, RANDOM_SHAPES[seed])
+        shifted = [Level(A=lv.A, b=lv.b, C=lv.C,
+                         lower=None if lv.lower is None else lv.lower + 0.05 * step,
+                         upper=None if lv.upper is None else lv.upper + 0.05 * step)
+                   for lv in levels]
+        ref = quadprog_cascade(shifted, n)
+        for algorithm, solver in solvers.items():
+            sol = solver.solve(shifted)
+            assert np.all(np.abs(sol.costs - ref) <= cost_tol(ref)), (algorithm, sol.costs, ref)
+            np.testing.assert_allclose(sol.costs, [level_cost(lv, sol.x) for lv in shifted],
+                                       rtol=1e-12, atol=1e-14)
