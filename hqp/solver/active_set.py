@@ -138,13 +138,8 @@ def solve_guess(
     if p:
         gl_in = gl - FEAS_TOL * gls
         gu_in = gu + FEAS_TOL * gus
-    if mc and s.any():
-        # a stale guess may hold a row at an infinite bound
-        s = np.where(((s > 0) & (up == np.inf)) | ((s < 0) & (lo == -np.inf)), 0, s).astype(
-            np.int8)
-    if p and w.any():
-        w = np.where(((w > 0) & (gu == np.inf)) | ((w < 0) & (gl == -np.inf)), 0, w).astype(
-            np.int8)
+    # (a stale guess holding a row at an infinite bound gives a non-finite point:
+    # rejected below, and the caller's QP then gives the next guess)
     es = np.maximum(1.0, np.abs(e)) if me else None
     seen: set[bytes] = set()
     for it in range(max_iter + 1):

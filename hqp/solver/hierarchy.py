@@ -442,6 +442,7 @@ class HierarchicalSolver:
             if feasible and carried:
                 feasible = _within(G @ xl, gl, gu, gls, gus)
             violated = None
+            qp_point = False
             if not feasible:
                 Gk = G if Z is None else G @ Z
                 gx = G @ x
@@ -476,6 +477,7 @@ class HierarchicalSolver:
                 if y is None:
                     # 3b. QP in the reduced coordinates (and the level's slacks)
                     qp_count += 1
+                    qp_point = True
                     H11 = Ak.T @ Ak
                     g1 = Ak.T @ bk
                     np.negative(g1, out=g1)
@@ -548,7 +550,8 @@ class HierarchicalSolver:
                 Z = null if Z is None else Z @ null
                 r = Z.shape[1]
             # carried rows: widen to contain x (absorbs the QP tolerance); add this level's
-            if carried and not feasible:
+            if carried and qp_point:
+                # (a verified active-set point is within FEAS_TOL of the carried bounds)
                 _widen(gl, gu, G @ x, gls, gus)
             if mi:
                 keep = lv.bounded if violated is None else lv.bounded & ~violated
