@@ -173,7 +173,8 @@ def parse_behavior(
 
         [behavior]      name, description, initial (phase), duration [s], robot,
                         ramp_time [s], unload_time [s], safety (default safety phase),
-                        inputs_file (default inputs, relative to the file)
+                        inputs_file (default inputs, relative to the file),
+                        backend (QP backend of the HQP controller)
         [contacts]      optional: contact name = frame (default: the robot's contacts)
         [inputs.NAME]   shape, default, interpolate, description   -> input.NAME
         [tasks.NAME]    type, level (int or category), weight, then the type's
@@ -200,7 +201,7 @@ def parse_behavior(
     head = _table(ctx, data, ("behavior",), required=True)
     _check_keys(ctx, head, ("behavior",), {
         "name", "description", "initial", "duration", "robot", "ramp_time", "unload_time",
-        "safety", "inputs_file",
+        "safety", "inputs_file", "backend",
     })
     name = _get(ctx, head, ("behavior", "name"), str, default=path.stem if path else "behavior")
     description = _get(ctx, head, ("behavior", "description"), str, default="")
@@ -211,6 +212,13 @@ def parse_behavior(
     unload_time = _positive(ctx, head, ("behavior", "unload_time"), 0.1, allow_zero=True)
     default_safety = _get(ctx, head, ("behavior", "safety"), str, default=None)
     inputs_file = _get(ctx, head, ("behavior", "inputs_file"), str, default=None)
+    backend = _get(ctx, head, ("behavior", "backend"), str, default=None)
+    if backend is not None:
+        from hqp.solver.backend import known_backends
+
+        if backend not in known_backends():
+            raise ctx.error(("behavior", "backend"), f"unknown QP backend {backend!r}; "
+                            f"expected one of {', '.join(known_backends())}")
     inputs_path = None
     if inputs_file is not None:
         base = path.parent if path is not None else Path.cwd()
@@ -350,7 +358,7 @@ def parse_behavior(
         name=name, description=description, initial=initial, phases=phases, tasks=tasks,
         inputs=inputs, planner=planner, duration=duration, robot=robot, ramp_time=ramp_time,
         unload_time=unload_time, path=path, contact_frames=contact_frames, poses=poses,
-        inputs_file=inputs_path,
+        inputs_file=inputs_path, backend=backend,
     )
 
 

@@ -72,7 +72,9 @@ class FootTracker:
         self.in_contact = contact
 
 
-def build_controller(robot: Any, controller: str, *, diagnostics: str = "residuals") -> Any:
+def build_controller(
+    robot: Any, controller: str, *, diagnostics: str = "residuals", backend: str | None = None
+) -> Any:
     """Build a whole-body controller holding only the constraint levels of ARCHITECTURE.md.
 
     The standing controllers (:func:`hqp.controller.standing_controller`,
@@ -85,6 +87,7 @@ def build_controller(robot: Any, controller: str, *, diagnostics: str = "residua
         robot: The bundled robot.
         controller: ``"hqp"`` or ``"nullspace"``.
         diagnostics: ``"residuals"`` (per-task residuals, cheap) or ``"full"``.
+        backend: QP backend of the HQP controller (``None``: its default).
 
     Raises:
         UnknownName: Unknown controller.
@@ -99,7 +102,8 @@ def build_controller(robot: Any, controller: str, *, diagnostics: str = "residua
     if controller == "hqp":
         from hqp.controller import standing_controller
 
-        ctrl = standing_controller(robot, diagnostics=diagnostics)
+        kwargs = {} if backend is None else {"backend": backend}
+        ctrl = standing_controller(robot, diagnostics=diagnostics, **kwargs)
     else:
         from hqp.nullspace import standing_nullspace_controller
 
@@ -150,6 +154,7 @@ def prepare(
     controller: str = "hqp",
     inputs: str | Path | None = None,
     overrides: dict[str, Any] | None = None,
+    backend: str | None = None,
 ) -> tuple[Behavior, Any, Any]:
     """Load a behavior for a robot and build its controller (no simulation).
 
@@ -159,6 +164,8 @@ def prepare(
         controller: ``"hqp"`` or ``"nullspace"``.
         inputs: Inputs file (default: the behavior's ``inputs_file``, else defaults).
         overrides: Input defaults to replace, by input name (e.g. a jump target).
+        backend: QP backend of the HQP controller (default: the behavior's ``backend``,
+            else the controller's default).
 
     Returns:
         ``(behavior, controller, robot)``.
@@ -169,7 +176,8 @@ def prepare(
 
     spec = source if isinstance(source, BehaviorSpec) else load_behavior(source)
     robot_obj = robots.load(robot or spec.robot)
-    ctrl = build_controller(robot_obj, controller)
+    ctrl = build_controller(robot_obj, controller,
+                            backend=backend if backend is not None else spec.backend)
     model = ctrl.model
     contacts = _contacts_of(spec, robot_obj)
     declared = set(ctrl.stack.contacts)
@@ -217,6 +225,7 @@ def run_behavior(
     video: str | Path | None = None,
     stop_on_fall: bool = True,
     progress: Callable[[float, float], None] | None = None,
+    backend: str | None = None,
 ) -> RunResult:
     """Run a behavior in MuJoCo and measure it (see the module docstring).
 
@@ -230,13 +239,15 @@ def run_behavior(
         video: Write an MP4 (or PNG frames) here, if rendering is available.
         stop_on_fall: End the run when the robot falls.
         progress: Called as ``progress(t, duration)`` every 0.1 s of simulated time.
+        backend: QP backend of the HQP controller (default: the behavior's, see
+            :func:`prepare`).
 
     Returns:
         The measurements.
 
     """
     behavior, ctrl, robot_obj = prepare(source, robot=robot, controller=controller,
-                                        inputs=inputs, overrides=overrides)
+                                        inputs=inputs, overrides=overrides, backend=backend)
     spec = behavior.spec
     T = float(duration if duration is not None else spec.duration)
     from hqp.sim.simulator import Simulator
@@ -318,6 +329,7 @@ def run_behavior(
         "flight_time_s": round(max_flight, 4),
         "pelvis_min_m": round(float(pelvis_min), 4),
         "step_time_median_ms": round(1e3 * float(np.median(step_times)), 3) if step_times else 0,
+        "backend": getattr(ctrl, "backend", None),
         "video": video_path,
     }
     if behavior.planner is not None:

@@ -179,6 +179,8 @@ class BehaviorSpec:
             e.g. ``{"left_foot": "left_foot"}``; empty: the robot's own contacts.
         poses: Captured poses by name: joint -> position [rad].
         inputs_file: Default inputs file (JSON Lines), used when none is given.
+        backend: QP backend of the HQP controller running the behavior (``None``: the
+            controller's default).
 
     """
 
@@ -197,6 +199,7 @@ class BehaviorSpec:
     contact_frames: Mapping[str, str] = field(default_factory=dict)
     poses: Mapping[str, Mapping[str, float]] = field(default_factory=dict)
     inputs_file: Path | None = None
+    backend: str | None = None
 
     def phase_enum(self) -> type[enum.Enum]:
         """Return an :class:`enum.Enum` of the phases (values: the phase names, in file order)."""
