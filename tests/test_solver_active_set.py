@@ -164,3 +164,21 @@ def test_warm_started_solver_against_independent_cascade(seed):
             assert np.all(np.abs(sol.costs - ref) <= cost_tol(ref)), (algorithm, sol.costs, ref)
             np.testing.assert_allclose(sol.costs, [level_cost(lv, sol.x) for lv in shifted],
                                        rtol=1e-12, atol=1e-14)
+
+
+@pytest.mark.parametrize("algorithm", ALGORITHMS)
+def test_unvalidated_path_gives_the_validated_result(algorithm):
+    """``validate=False`` (levels built by the stack) changes nothing on valid levels."""
+    rng = np.random.default_rng(11)
+    for seed in range(3):
+        levels = random_levels(rng, 10, RANDOM_SHAPES[seed])
+        levels.append(Level(name="empty"))
+        a = HierarchicalSolver("proxsuite", algorithm).solve(levels)
+        b = HierarchicalSolver("proxsuite", algorithm).solve(levels, validate=False)
+        np.testing.assert_array_equal(a.x, b.x)
+        for ra, rb in zip(a.levels, b.levels):
+            assert ra.cost == rb.cost and ra.name == rb.name
+            np.testing.assert_array_equal(ra.active, rb.active)
+    # malformed input is still caught by default
+    with pytest.raises(ValueError, match="level 0"):
+        HierarchicalSolver("proxsuite", algorithm).solve([Level(A=np.eye(2), b=[np.nan, 0.0])])

@@ -20,7 +20,9 @@ wall clock and CPU; basis rows), ``ratio_to_basis_proxsuite``
 ``cost_excess`` (largest relative excess of a level's cost over the
 basis-proxsuite solution, ``(cost - ref) / max(1, ref)``), ``exact`` (every
 level within the contract's ``1e-6`` relative tolerance), ``family``,
-``active_rows`` (inequality rows active at the solution) and, for
+``active_rows`` (inequality rows active at the solution), ``warm_start``
+(the solvers' active-set warm start, :mod:`hqp.solver.active_set`; the
+reference problem is measured a second time without it) and, for
 ``daqp-hier``, ``level_cost_excess`` per level.
 """
 
@@ -125,14 +127,17 @@ def solver_suite(quick: bool = False, progress: Callable[[str], None] | None = N
     min_reps = 3 if quick else 15
     backends = available_backends()
     solvers = [f"{a}/{b}" for b in backends for a in ALGORITHMS] + ["daqp-hier"]
-    configs = [(n, L, "mixed") for n in n_values for L in level_counts]
-    configs.append((20 if quick else 40, 4, "light"))
+    configs = [(n, L, "mixed", True) for n in n_values for L in level_counts]
+    configs.append((20 if quick else 40, 4, "light", True))
+    if not quick:
+        # the reference problem again with the active-set warm start off (both algorithms)
+        configs.append((40, 4, "mixed", False))
     rows: list[dict] = []
     bar = tqdm(total=len(configs) * len(solvers), desc="solver suite", unit="run",
                disable=None, leave=False)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # qpsolvers' OSQP status warnings
-        for n, L, family in configs:
+        for n, L, family, warm in configs:
             rng = np.random.default_rng(1000 * n + L)
             base = random_hierarchy(rng, n, level_specs(n, L, LIGHT_BAND if family == "light"
                                                          else 1.0))
@@ -145,7 +150,8 @@ def solver_suite(quick: bool = False, progress: Callable[[str], None] | None = N
             n_active = int(sum(lv.active.size for lv in ref_sol.levels))
             group = []
             for name in solvers:
-                bar.set_postfix_str(f"n={n} L={L} {family} {name}")
+                bar.set_postfix_str(f"n={n} L={L} {family} {name}"
+                                    + ("" if warm else " (no warm start)"))
                 if name == "daqp-hier":
                     data = [daqp_hierarchy_data(v) for v in variants]
                     x0, _flag = solve_daqp_hierarchy(data[0])
@@ -155,7 +161,8 @@ def solver_suite(quick: bool = False, progress: Callable[[str], None] | None = N
                     qp_count = None
                 else:
                     algorithm, backend = name.split("/")
-                    solver = HierarchicalSolver(backend, algorithm, compute_sigma=False)
+                    solver = HierarchicalSolver(backend, algorithm, compute_sigma=False,
+                                                warm_start=warm)
                     sol0 = solver.solve(variants[0])
                     x0 = sol0.x
                     qp_count = sol0.qp_count
@@ -180,6 +187,7 @@ def solver_suite(quick: bool = False, progress: Callable[[str], None] | None = N
                     "family": family,
                     "active_rows": n_active,
                     "reference_problem": n == 40 and L == 4,
+                    "warm_start": warm if name != "daqp-hier" else None,
                 }
                 if name == "daqp-hier":
                     row["level_cost_excess"] = [float(e) for e in excess]

@@ -64,7 +64,7 @@ from hqp.errors import (
 )
 from hqp.solver.active_set import Guess, guess_from_point, solve_guess
 from hqp.solver.backend import QPBackend, make_backend
-from hqp.solver.level import CheckedLevel, Level, check_level
+from hqp.solver.level import CheckedLevel, Level, check_level, trusted_level
 from hqp.solver.linalg import PivotedQR as _PivotedQR
 from hqp.solver.linalg import singular_values as _singular_values
 from hqp.solver.solution import ROW_TOL, SATISFIED_COST, LevelReport, Solution
@@ -161,6 +161,22 @@ def _check_levels(levels: Sequence[Level], n_hint: int | None) -> tuple[list[Che
                 np.zeros((0, n)), lv.b, np.zeros((0, n)), lv.lower, lv.upper, lv.name
             )
     return checked, n
+
+
+def _trusted_levels(levels: Sequence[Level], n_hint: int | None) -> tuple[list[CheckedLevel], int]:
+    """Convert levels without checking them (``validate=False``)."""
+    n = n_hint
+    for lv in levels:
+        for M in (lv.A, lv.C):
+            if M is not None:
+                n = np.shape(M)[-1]
+                break
+        else:
+            continue
+        break
+    if n is None:
+        return _check_levels(levels, n_hint)  # let the checks explain
+    return [trusted_level(lv, n) for lv in levels], n
 
 
 def _metric_sqrt(M: np.ndarray) -> np.ndarray:
@@ -319,6 +335,8 @@ class HierarchicalSolver:
         levels: Sequence[Level],
         final_metric: Any = None,
         final_target: Any = None,
+        *,
+        validate: bool = True,
     ) -> Solution:
         """Solve the hierarchy.
 
@@ -326,6 +344,11 @@ class HierarchicalSolver:
             levels: Levels, highest priority first.
             final_metric: Symmetric positive semidefinite ``(n, n)`` or ``None`` (identity).
             final_target: ``(n,)`` or ``None`` (zero).
+            validate: Check every level (shapes, NaN/inf, ``lower <= upper``; the
+                default). ``False`` is for levels built by code that guarantees
+                them (the controller's stack): float arrays of consistent shapes
+                (``None`` fields allowed), finite ``A``, ``b``, ``C``; a violation
+                then gives undefined results instead of an ``HQPError``.
 
         Returns:
             The lexicographic optimum with one report per level.
@@ -342,7 +365,10 @@ class HierarchicalSolver:
             if value is not None:
                 shape = np.shape(value)
                 n_hint = int(shape[0]) if len(shape) else None
-        checked, n = _check_levels(levels, n_hint)
+        if validate:
+            checked, n = _check_levels(levels, n_hint)
+        else:
+            checked, n = _trusted_levels(levels, n_hint)
         internal = _final_levels(n, final_metric, final_target)
         all_levels = [(lv, _Internal.NONE) for lv in checked] + internal
         self._n = n
