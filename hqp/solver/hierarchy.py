@@ -104,6 +104,14 @@ backend's QP point is held at that bound in the polishing solve."""
 POLISH_ITER = 2
 """Active-set updates tried when polishing a backend's QP point."""
 
+WARM_SKIP = 50
+"""Solves of a level slot that go straight to the backend after neither the
+warm-start guess nor the active set of the backend's QP point verified. On
+the nearly degenerate levels of real whole-body stacks (more carried rows
+held than free directions, some nearly dependent) the active-set solve is
+too ill-conditioned to pass the checks, and each failed attempt costs
+several factorisations; such a level usually stays so for a while."""
+
 ALGORITHMS = ("basis", "cascade")
 """Names of the lexicographic algorithms."""
 
@@ -305,6 +313,7 @@ class HierarchicalSolver:
         self._backend: QPBackend = make_backend(backend)
         self._guesses: dict[Any, tuple[np.ndarray, np.ndarray]] = {}
         self._points: dict[Any, np.ndarray] = {}
+        self._warm_skip: dict[Any, int] = {}
 
     def reset(self) -> None:
         """Forget the persistent QPs (the next solve starts cold)."""
@@ -312,6 +321,7 @@ class HierarchicalSolver:
         self._backend.__dict__.pop("_hqp_relaxed", None)
         self._guesses.clear()
         self._points.clear()
+        self._warm_skip.clear()
 
     def _guess(self, slot: Any, mi: int, gid: np.ndarray, total_in: int) -> Guess | None:
         """Return the active set of the slot's previous solve, if the hierarchy's shapes held."""
@@ -322,6 +332,22 @@ class HierarchicalSolver:
         if point is None or point.shape != (self._n,):
             return None
         return Guess(memo[0], memo[1][gid])
+
+    def _warm_slot(self, slot: Any) -> bool:
+        """Whether the slot uses the warm start in this solve (see :data:`WARM_SKIP`)."""
+        skip = self._warm_skip.get(slot)
+        if not skip:
+            return True
+        if skip <= 1:
+            del self._warm_skip[slot]
+        else:
+            self._warm_skip[slot] = skip - 1
+        return False
+
+    def _warm_failed(self, slot: Any) -> None:
+        """Neither the guess nor the QP point's active set verified: rest the slot."""
+        self._warm_skip[slot] = WARM_SKIP
+        self._guesses.pop(slot, None)
 
     def _remember(self, slot: Any, guess: Guess, gid: np.ndarray, total_in: int) -> None:
         """Keep the slot's active set (carried rows by their index in the hierarchy)."""
@@ -440,7 +466,8 @@ class HierarchicalSolver:
             bk = b - A @ x
             # 1. least squares on the equality rows (pivoted QR of the projected matrix)
             fact = None
-            warm = self._guess(k, mi, gid, total_in) if self.warm_start and (
+            ws = self.warm_start and self._warm_slot(k)
+            warm = self._guess(k, mi, gid, total_in) if ws and (
                 mi or carried) else None
             deferred = warm is not None and (warm.s.any() or warm.w.any())
             if deferred:
@@ -482,7 +509,7 @@ class HierarchicalSolver:
                 # 3a. the previous solve's active set (or the least-squares point's),
                 # verified by the optimality conditions
                 y = None
-                if self.warm_start:
+                if ws:
                     guess = warm
                     if guess is None:
                         # cold: the least-squares point's violated rows
@@ -530,7 +557,7 @@ class HierarchicalSolver:
                         up = np.concatenate((up_r, gur))
                         v, ok = _qp(backend, k, H, g, None, None, Cq, lo, up)
                         y = v[:r]
-                    if self.warm_start and np.isfinite(y).all():
+                    if ws and np.isfinite(y).all():
                         # polish: the QP point's active set, solved exactly if it verifies
                         guess = guess_from_point(Ck @ y if mi else None, lo_r, up_r,
                                                  lv.lo_scale, lv.up_scale,
@@ -542,7 +569,9 @@ class HierarchicalSolver:
                             scale, max_iter=POLISH_ITER, ref=y)
                         if yp is not None:
                             y, guess, ok = yp, guess2, True
-                if self.warm_start:
+                        else:
+                            self._warm_failed(k)
+                if ws:
                     self._remember(k, guess, gid, total_in)
                     self._points[k] = x + (y if Z is None else Z @ y)
                 if not ok:
@@ -634,7 +663,8 @@ class HierarchicalSolver:
             q = E.shape[0]
             slot = ("cascade", k)
             v = None
-            if self.warm_start:
+            ws = self.warm_start and self._warm_slot(slot)
+            if ws:
                 # the same active-set warm start as the basis algorithm (full x)
                 guess = self._guess(slot, mi, gid, total_in)
                 if guess is None:
@@ -652,7 +682,7 @@ class HierarchicalSolver:
             if v is None:
                 v, ok = self._cascade_qp(slot, lv, n, E, x, G, gl, gu)
                 qp_count += 1
-                if self.warm_start and np.isfinite(v).all():
+                if ws and np.isfinite(v).all():
                     xq = v[:n]
                     guess = guess_from_point(C @ xq if mi else None, lv.lower, lv.upper,
                                              lv.lo_scale, lv.up_scale, G @ xq if p else None,
@@ -664,7 +694,9 @@ class HierarchicalSolver:
                         max_iter=POLISH_ITER, ref=xq)
                     if xp is not None:
                         v, guess, ok = xp, guess2, True
-            if self.warm_start:
+                    else:
+                        self._warm_failed(slot)
+            if ws:
                 self._remember(slot, guess, gid, total_in)
                 self._points[slot] = v[:n].copy()
             if not ok:
