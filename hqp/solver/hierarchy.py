@@ -286,7 +286,10 @@ class HierarchicalSolver:
             that level (or, cold, of the least-squares point) and accept it only if
             the optimality conditions hold (:mod:`hqp.solver.active_set`); after a
             backend's QP, re-solve exactly on its active set when that verifies.
-            Both algorithms use it alike.
+            Both algorithms use it alike. ``None`` (default): on, except for
+            backends that warm start their own persistent QPs (``proxsuite``),
+            whose warm-started solves cost no more than the interpreted
+            active-set solve on hierarchies of a few dozen variables.
 
     Raises:
         UnknownBackend: Unknown or uninstalled backend.
@@ -301,7 +304,7 @@ class HierarchicalSolver:
         algorithm: str = "basis",
         rank_tol: float = 1e-9,
         compute_sigma: bool = True,
-        warm_start: bool = True,
+        warm_start: bool | None = None,
     ) -> None:
         if algorithm not in ALGORITHMS:
             raise UnknownName("algorithm", str(algorithm), ALGORITHMS)
@@ -309,8 +312,10 @@ class HierarchicalSolver:
         self.backend_name = backend
         self.algorithm = algorithm
         self.compute_sigma = compute_sigma
-        self.warm_start = bool(warm_start)
         self._backend: QPBackend = make_backend(backend)
+        if warm_start is None:
+            warm_start = not getattr(self._backend, "warm_started", False)
+        self.warm_start = bool(warm_start)
         self._guesses: dict[Any, tuple[np.ndarray, np.ndarray]] = {}
         self._points: dict[Any, np.ndarray] = {}
         self._warm_skip: dict[Any, int] = {}

@@ -56,6 +56,9 @@ class ProxsuiteBackend(QPBackend):
     """
 
     name = "proxsuite"
+    warm_started = True
+    """Warm starts its persistent per-level QPs itself (the hierarchy's
+    active-set warm start is off by default with this backend)."""
 
     def __init__(self) -> None:
         self._qps: dict[Hashable, tuple[tuple[int, int, int], object]] = {}
