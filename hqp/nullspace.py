@@ -148,6 +148,36 @@ argument in torque space) with no component in ``null(Phi)``. Therefore, with th
 These statements hold for the equality rows. The law has no inequalities: friction cones,
 torque limits and the HQP's viable joint limits are not enforced (only reported), which is
 what the activation-zone primitive is for.
+
+Contact and actuation limits as activation zones (opt-in)
+=========================================================
+
+The plain law grants whatever the task rows ask, including a support wrench the feet cannot
+give. On the hand-reach scenario (seed 003 sec. 5, ``hqp compare hand-reach``) this is what
+makes ``paper-humanoid`` fall within 0.1 s in both hierarchies: at the very first step the
+accelerations of the CoG, hand and symmetry-posture rows need a centre of pressure about 2 cm
+behind the soles (13 cm behind each ankle for a 12.5 cm half sole) and a head torque 17 %
+beyond its limit. The feet tip on their heels, the ankle pitch (standing 0.024 rad from its
+0.1 rad zone) enters its zone after 4 ms, the zone's PD (kp 400, kv 40) then asks for a
+deceleration of the whole body about the ankle that needs a centre of pressure ~1 m away and
+torques of 1-2 kN m (clipped to the limits), and the robot collapses. The HQP controller keeps
+the same tasks feasible because its contact-limit level (centre of pressure, friction, torque
+limits) is above the tasks.
+
+:class:`NullSpaceController` can apply the papers' own constraint mechanism, the activation
+zone, to these limits (``support_zone``, ``torque_zone``; off by default, so the controller is
+the papers' law): when the plain law's centre of pressure leaves a zone of the support polygon,
+or a joint's torque leaves a zone of its limit, equality rows that hold it at the zone's border
+(:func:`support_moment_rows`; ``tau_j = Phi^+ S (qdd - qdd_0) + tau_int``) become the top task
+level, above the joint-limit zones (constraints first, eq. 10-12, in the HQP stack's order) and
+the law is applied again. On hand-reach (both hierarchies) this keeps the run inside its limits
+for its first second (no fall, no joint past its limit, no clipping, CoG error below 0.1 mm,
+hand 56 cm from its target at 1 s, close to the HQP run); at about 1.1 s the torso pitch
+(78 N m, held since 0.55 s) and head pitch (8 N m) torques are both at their zones, the held
+rows switch on and off between steps and the solution jumps (|qdd| from 7 to 45 rad/s^2 in
+one step, the feet rock sideways) and the robot falls at 1.2-1.5 s. Equalities switched by
+zones cannot replace inequalities above the tasks there; the HQP run keeps the torso at its
+torque limit from 0.9 s to the end.
 """
 
 from __future__ import annotations
@@ -881,9 +911,17 @@ class NullSpaceController(_controller_base()):  # type: ignore[misc]
             least ``tau^T Phi tau``, module docstring).
         final_target: Accepted for call compatibility; unused.
         diagnostics: ``"full"`` (per-task eigenvalues and ``yields_to``) or ``"residuals"``.
+        support_zone: Fraction of each contact's centre-of-pressure box that bounds the
+            support's centre of pressure, as an activation zone at the top of the task
+            hierarchy (``None``, the default: the plain law; module docstring and
+            :meth:`_constraint_zones`).
+        torque_zone: Fraction of the torque limits that bounds each joint's torque, as an
+            activation zone at the same level (``None``, the default: the plain law).
+        zone_passes: Largest number of re-applications of the law per step for the zones.
 
     Raises:
-        InvalidInput: Bad period, tolerances, ``eig_tol``, ``internal_forces`` or ``method``.
+        InvalidInput: Bad period, tolerances, ``eig_tol``, ``internal_forces``, ``method``,
+            ``support_zone``, ``torque_zone`` or ``zone_passes``.
 
     """
 
@@ -948,8 +986,6 @@ class NullSpaceController(_controller_base()):  # type: ignore[misc]
         self.torque_zone = None if torque_zone is None else float(torque_zone)
         self.zone_passes = int(zone_passes)
         self.torques_held: tuple[int, ...] = ()
-        self.torque_release = 0.9
-        self._held_before = np.zeros(0, dtype=int)
         """Actuated joints whose torque was held at its zone's border at the last step."""
         self.support_active = False
         """Whether the support constraint was active at the last step."""
@@ -1065,11 +1101,7 @@ class NullSpaceController(_controller_base()):  # type: ignore[misc]
                     self.support_active = True
             if self.torque_zone is not None:
                 limit = self.torque_zone * m.tau_max
-                beyond = np.abs(law.tau) > limit
-                if not rows:  # hysteresis: joints held at the last step stay held near the border
-                    beyond |= np.isin(np.arange(m.na), self._held_before) & (
-                        np.abs(law.tau) > self.torque_release * limit)
-                over = [j for j in np.flatnonzero(beyond) if j not in held]
+                over = [j for j in np.flatnonzero(np.abs(law.tau) > limit) if j not in held]
                 if over:
                     G = law.phi_pinv @ S  # tau_plain = G (qdd - qdd0)
                     for j in over:
@@ -1093,7 +1125,6 @@ class NullSpaceController(_controller_base()):  # type: ignore[misc]
                 base.skipped,
             )
             law = self._law(problem)
-        self._held_before = np.array(sorted(held), dtype=int)
         if support_held:
             notes.append("support zone active: centre of pressure held at its zone's border")
         if held:

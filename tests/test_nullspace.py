@@ -577,3 +577,35 @@ def test_hand_reach_under_the_law(hierarchy):
     assert not log.fell and log.t[-1] >= 1.0 - 2e-3
     assert joint_limit_violation(log, ctrl.model).max() < 1e-3
     assert log.clip_count == 0 and not clipped
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("hierarchy", ["shared", "cog-first"])
+def test_hand_reach_first_second_under_the_law_with_limit_zones(hierarchy):
+    """The law with its support and torque activation zones holds hand-reach for 1 s.
+
+    No fall, no joint past its limit (the papers' joint-limit zones at the top), no torque
+    clipping, the centre of gravity over the feet, the hand on its way (about 1 m from its
+    target at the start). Beyond about 1.1 s the torso and head torque limits break it (see
+    the module docstring of :mod:`hqp.nullspace` and the xfail test above).
+    """
+    from hqp.sim.run import simulate
+
+    robot, ctrl, goals = hand_reach_law(hierarchy, support_zone=0.8, torque_zone=0.95)
+    clipped = []
+    supported = []
+
+    def watch(sim, cmd):
+        if any("clipped" in n for n in cmd.report.notes):
+            clipped.append(cmd.t)
+        supported.append(ctrl.support_active or bool(ctrl.torques_held))
+
+    log = simulate(robot, ctrl, 1.0, on_step=watch)
+    assert not log.fell and log.t[-1] >= 1.0 - 2e-3
+    assert joint_limit_violation(log, ctrl.model).max() < 1e-3
+    assert log.clip_count == 0 and not clipped
+    assert any(supported)  # the zones were needed
+    cog_error = np.linalg.norm(log.com[:, :2] - goals["cog"], axis=1)
+    assert cog_error.max() < 2e-3  # [m]
+    hand = ctrl.model.frame_placement(robot.hands[1]).translation  # at the last step
+    assert np.linalg.norm(hand - goals["hand"]) < 0.7  # [m] (1.02 m at the start)
