@@ -175,9 +175,11 @@ def test_unvalidated_path_gives_the_validated_result(algorithm):
         levels.append(Level(name="empty"))
         a = HierarchicalSolver("proxsuite", algorithm).solve(levels)
         b = HierarchicalSolver("proxsuite", algorithm).solve(levels, validate=False)
-        np.testing.assert_array_equal(a.x, b.x)
+        # (same numbers; BLAS kernels may differ in the last bit with memory alignment)
+        np.testing.assert_allclose(a.x, b.x, rtol=0, atol=1e-12)
         for ra, rb in zip(a.levels, b.levels):
-            assert ra.cost == rb.cost and ra.name == rb.name
+            assert ra.name == rb.name
+            np.testing.assert_allclose(ra.cost, rb.cost, rtol=1e-10, atol=1e-14)
             np.testing.assert_array_equal(ra.active, rb.active)
     # malformed input is still caught by default
     with pytest.raises(ValueError, match="level 0"):

@@ -319,6 +319,8 @@ class HierarchicalSolver:
         self._guesses: dict[Any, tuple[np.ndarray, np.ndarray]] = {}
         self._points: dict[Any, np.ndarray] = {}
         self._warm_skip: dict[Any, int] = {}
+        self._needed_qp: dict[Any, tuple[int, int, int]] = {}
+        self._norm_levels: dict[int, list[tuple[CheckedLevel, int]]] = {}
 
     def reset(self) -> None:
         """Forget the persistent QPs (the next solve starts cold)."""
@@ -327,6 +329,7 @@ class HierarchicalSolver:
         self._guesses.clear()
         self._points.clear()
         self._warm_skip.clear()
+        self._needed_qp.clear()
 
     def _guess(self, slot: Any, mi: int, gid: np.ndarray, total_in: int) -> Guess | None:
         """Return the active set of the slot's previous solve, if the hierarchy's shapes held."""
@@ -400,7 +403,12 @@ class HierarchicalSolver:
             checked, n = _check_levels(levels, n_hint)
         else:
             checked, n = _trusted_levels(levels, n_hint)
-        internal = _final_levels(n, final_metric, final_target)
+        if final_metric is None and final_target is None:
+            internal = self._norm_levels.get(n)
+            if internal is None:
+                internal = self._norm_levels[n] = _final_levels(n, None, None)
+        else:
+            internal = _final_levels(n, final_metric, final_target)
         all_levels = [(lv, _Internal.NONE) for lv in checked] + internal
         self._n = n
         if self.algorithm == "basis":
@@ -474,10 +482,14 @@ class HierarchicalSolver:
             ws = self.warm_start and self._warm_slot(k)
             warm = self._guess(k, mi, gid, total_in) if ws and (
                 mi or carried) else None
-            deferred = warm is not None and (warm.s.any() or warm.w.any())
+            if ws:
+                deferred = warm is not None and (warm.s.any() or warm.w.any())
+            else:
+                deferred = (mi > 0 or carried) and self._needed_qp.get(k) == (mi, r, G.shape[0])
             if deferred:
                 # the previous solve needed this level's inequalities: go straight
-                # to its active set (3a); the null space is computed in 4.
+                # to its active set (3a) or its QP (3b), skipping the least-squares
+                # point that was infeasible then; the null space is computed in 4.
                 y = None
                 null = None
             elif kind == _Internal.NORM:
@@ -592,6 +604,10 @@ class HierarchicalSolver:
                         cx < lv.lower - FIX_TOL * lv.lo_scale)
                     if viol.any():
                         violated = viol
+            if qp_point:
+                self._needed_qp[k] = (mi, r, G.shape[0])
+            else:
+                self._needed_qp.pop(k, None)
             # 4. shrink the basis: equality rows and violated rows become equalities
             if violated is not None:
                 Cv = C[violated]
