@@ -1324,6 +1324,8 @@ def standing_nullspace_controller(
     zone_gains: tuple[float, float] = (400.0, 40.0),
     eig_tol: float = EIG_TOL,
     internal_forces: str = "min-norm",
+    support_zone: float | None = None,
+    torque_zone: float | None = None,
     **gains: float,
 ) -> NullSpaceController:
     """Build a :class:`NullSpaceController` holding a humanoid standing on both feet.
@@ -1346,6 +1348,8 @@ def standing_nullspace_controller(
         zone_gains: ``(kp, kv)`` of the zones' PD law.
         eig_tol: Relative eigenvalue threshold of eq. 22.
         internal_forces: ``"min-norm"`` or ``"none"``.
+        support_zone: Support activation zone (:class:`NullSpaceController`; ``None``: off).
+        torque_zone: Torque activation zone (:class:`NullSpaceController`; ``None``: off).
         **gains: Keyword arguments of :func:`hqp.controller.standing_stack`.
 
     """
@@ -1362,7 +1366,8 @@ def standing_nullspace_controller(
                 stack.remove(task.name)
         stack.pop_events()
     return NullSpaceController(model, contacts, stack, dt=dt, diagnostics=diagnostics,
-                               eig_tol=eig_tol, internal_forces=internal_forces)
+                               eig_tol=eig_tol, internal_forces=internal_forces,
+                               support_zone=support_zone, torque_zone=torque_zone)
 
 
 def make_standing_controller(kind: str, robot: Robot, **kwargs: object) -> Controller:

@@ -30,8 +30,11 @@ def survives(robot_name: str, force: float, angle_deg: float, args: argparse.Nam
     from hqp.sim import Push, simulate
 
     robot = robots.load(robot_name)
+    extra = {}
+    if args.controller == "nullspace" and args.law_zones:
+        extra = {"support_zone": args.law_zones[0], "torque_zone": args.law_zones[1]}
     controller = make_standing_controller(args.controller, robot, backend=args.backend,
-                                          diagnostics="residuals")
+                                          diagnostics="residuals", **extra)
     a = math.radians(angle_deg)
     push = Push(args.push_at, (force * math.cos(a), force * math.sin(a), 0.0), args.push_duration)
     start = time.perf_counter()
@@ -64,6 +67,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--backend", default="proxsuite", help="QP backend of the HQP controller")
     p.add_argument("--controller", default="hqp", choices=("hqp", "nullspace"),
                    help="standing controller: HQP or the papers' null-space law")
+    p.add_argument("--law-zones", type=float, nargs=2, metavar=("SUPPORT", "TORQUE"),
+                   help="null-space law only: support and torque activation zones "
+                        "(fractions, e.g. 0.8 0.95; default: the plain law)")
     args = p.parse_args(argv)
 
     results = []
@@ -91,7 +97,8 @@ def main(argv: list[str] | None = None) -> int:
                         "smallest_fallen_n": hi if lo < hi else None, "runs": runs})
     print(json.dumps({"robot": args.robot, "push_duration_s": args.push_duration,
                       "push_at_s": args.push_at, "run_duration_s": args.duration,
-                      "controller": args.controller, "backend": args.backend,
+                      "controller": args.controller, "law_zones": args.law_zones,
+                      "backend": args.backend,
                       "directions": results}, indent=1))
     return 0
 
