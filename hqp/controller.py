@@ -778,12 +778,23 @@ def standing_stack(
             half_width=sole_margin * surface.half_width, kd=contact_kd, model=model,
         ))
     stack.add(TorqueLimits(scale=torque_scale), Category.CONTACT_LIMITS)
-    # Braking acceleration A of the viable joint limits (also a bound on |qdd|): the
-    # fixed-base torque estimate, kept within [5, 50] rad/s^2. The support-aware estimate is
-    # far smaller at the ankles (about 1 rad/s^2 on paper-humanoid: the whole body about the
-    # ankle), and as a hard bound it locks the ankles that balance needs.
+    # Viable joint limits. Bound on |qdd|: the fixed-base torque estimate, kept within
+    # [5, 50] rad/s^2. Braking assumption A of the viability bound: the smaller of half that
+    # bound (a reserve: braking on the curve of the full bound overshoots as soon as the
+    # realised deceleration falls short of the commanded one, e.g. on soft contacts) and the
+    # support-aware estimate (a leg joint moves the rest of the body about the soles: about
+    # 1 rad/s^2 at the ankles of paper-humanoid), so that a joint whose braking needs the
+    # contacts approaches its limit slowly enough to be stopped within them. As a bound on
+    # |qdd| the support-aware value would lock the ankles that balance needs; as the braking
+    # assumption it only caps the velocity toward a limit at sqrt(2 A d). Where the estimate
+    # is zero (g1's ankle roll: its torque limit cannot hold the whole body on one ankle, a
+    # case the rigid side-about-the-axis model does not describe in double support), half the
+    # bound is kept.
     qdd_max = np.clip(max_acceleration_from_torques(model, margin=0.5), 5.0, 50.0)
-    stack.add(JointLimits(qdd_max=qdd_max))
+    support = max_acceleration_from_torques(
+        model, margin=0.5, supports=[robot.contact(foot).frame for foot in robot.feet])
+    braking = np.where(support > 0.0, np.minimum(0.5 * qdd_max, support), 0.5 * qdd_max)
+    stack.add(JointLimits(qdd_max=qdd_max, braking=braking, reserve=2.0))
     com = CoMTask(model, kp=com_kp)
     centre = support_center(model, list(robot.feet))
     com.set_goal(np.array([centre[0], centre[1], model.com[2]]))

@@ -184,15 +184,10 @@ def test_real_robots_stand(name):
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(
-    strict=False,
-    reason="open defect (issue 4): the right ankle pitch reaches its lower limit at -1 rad/s "
-    "(t = 0.2 s) with 0.03 rad left; braking needs ~17 rad/s^2, which the contact-limit level "
-    "above (CoP in the sole) does not allow, so the joint-limit level is reported in conflict "
-    "and the ankle passes its limit by up to 0.2 rad. The viable bounds use a fixed-base "
-    "deceleration estimate clipped to [5, 50] rad/s^2 instead of what the support allows.",
-)
 def test_unreachable_hand_goal_never_drives_a_joint_past_its_limit():
+    # The viable joint limits of standing_stack brake the leg joints with what the support
+    # allows (about 1 rad/s^2 at the ankles, not the fixed-base 50 rad/s^2), so the ankles and
+    # the torso start braking early enough; measured excess about 1e-4 rad (threshold 1e-3).
     r = robots.load(PAPER)
     full = r.model()
     lo, hi = full.q_lower.copy(), full.q_upper.copy()

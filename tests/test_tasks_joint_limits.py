@@ -288,3 +288,54 @@ def test_acceleration_bounds_are_optional(arm: RobotModel) -> None:
     q1 = q[0] + DT * v[0] + 0.5 * DT**2 * ub[0]
     v1 = v[0] + DT * ub[0]
     assert v1**2 <= 2 * A * (arm.q_upper[0] - q1) + 1e-9
+
+
+def test_braking_below_the_acceleration_bound_does_not_lock_and_stops_at_the_limit(
+    arm: RobotModel,
+) -> None:
+    """``braking`` small, ``qdd_max`` large: free far from the limit, stopped exactly at it.
+
+    Closed loop with the semi-implicit Euler step of a simulator (``q+ = q + dt v+``), taking
+    the upper bound at every step: the joint ends at its limit without passing it, nearly at
+    rest.
+    """
+    A_max, B = 50.0, 1.0
+    task = JointLimits(qdd_max=A_max, braking=B, reserve=2.0)
+    q, v = arm.neutral(), np.zeros(arm.nv)
+    arm.update(q, v)
+    lb, ub = task.bounds(arm, DT)
+    np.testing.assert_allclose(ub, A_max)  # far from the limits: not locked by the braking
+    np.testing.assert_allclose(lb, -A_max)
+    q[0] = arm.q_upper[0] - 0.2
+    peak = -np.inf
+    for k in range(3000):
+        arm.update(q, v)
+        lb, ub = task.bounds(arm, DT)
+        assert lb[0] <= ub[0]
+        if k > 5 and arm.q_upper[0] - q[0] > 1e-4:
+            # accelerating at A_max to the braking curve, then braking within 2 B (the last
+            # steps may need the one-step stop, -2 v / dt, a few rad/s^2 at mm/s)
+            assert ub[0] >= -2.0 * B - 1e-9
+        v = v + DT * np.where(np.arange(arm.nv) == 0, ub, 0.0)
+        q = q + DT * v
+        peak = max(peak, q[0])
+        assert abs(v[0]) <= np.sqrt(2 * B * max(arm.q_upper[0] - q[0], 0.0)) + A_max * DT
+    assert peak <= arm.q_upper[0] + 1e-12
+    np.testing.assert_allclose(q[0], arm.q_upper[0], atol=1e-4)
+    assert abs(v[0]) < 2.0 * B * DT
+
+
+def test_a_state_past_its_limit_is_driven_back_within_the_reserve(arm: RobotModel) -> None:
+    A_max, B = 50.0, 1.0
+    task = JointLimits(qdd_max=A_max, braking=B, reserve=2.0)
+    q, v = arm.neutral(), np.zeros(arm.nv)
+    q[1] = arm.q_lower[1] - 0.01  # 10 mrad past the lower limit, at rest
+    q[2] = arm.q_upper[2] - 0.01  # not viable for B: 0.5 rad/s at 10 mrad
+    v[2] = 0.5
+    arm.update(q, v)
+    lb, ub = task.bounds(arm, DT)
+    np.testing.assert_allclose([lb[1], ub[1]], [2.0 * B, A_max])  # back toward the range
+    np.testing.assert_allclose([lb[2], ub[2]], [-A_max, -2.0 * B])  # brake, within 2 B
+    for name in ("braking", "reserve"):
+        with pytest.raises(InvalidGain, match=name):
+            JointLimits(**{name: 0.5 if name == "reserve" else 0.0})

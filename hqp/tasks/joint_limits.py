@@ -8,7 +8,11 @@ control period ``dt`` and the acceleration ``a`` held over the period,
 
 each actuated joint gets ``lb <= a <= ub`` with ``ub`` the smallest of
 
-* the one-step position bound ``(2 / dt^2) (q_max - q - dt v)`` (``q+ <= q_max``);
+* the one-step position bound ``q+ <= q_max``, valid both for the exact step
+  above and for the semi-implicit Euler step of a simulator
+  (``q+ = q + dt v+``, MuJoCo): ``(1 / dt^2) r`` when ``r = q_max - q - dt v``
+  is positive (the Euler step moves further), ``(2 / dt^2) r`` when it is
+  negative (the exact step brakes less);
 * the viability bound: after the step, braking at the maximum deceleration
   ``A`` (``qdd_max``) must stop the joint before ``q_max``, i.e.
   ``(v+)^2 <= 2 A (q_max - q+)``, a quadratic in ``a``:
@@ -16,8 +20,14 @@ each actuated joint gets ``lb <= a <= ub`` with ``ub`` the smallest of
       dt^2 a^2 + dt (2 v + A dt) a + v^2 + 2 A (q + dt v - q_max) <= 0,
 
   whose larger root is the bound (at a state that is not viable, where the
-  discriminant is negative, the bound is ``-A``: brake);
-* the velocity bound ``(v_max - v) / dt`` (``v+ <= v_max``);
+  discriminant is negative or the root asks for more than ``A``, the bound
+  brakes: ``-min(A_r, max(A, v^2 / (2 d)))`` with ``d = q_max - q``, the
+  deceleration that still stops at the limit when the robot has it, within
+  the reserve ``A_r = min(A_max, reserve A)``);
+* the velocity bound ``(v_max - v) / T_v`` with ``T_v = max(dt, velocity_time)``
+  (``v+ <= v_max``; with ``T_v = dt`` the joint reaches ``v_max`` in one step
+  and its acceleration drops from ``A_max`` to 0 at once, a torque step; a
+  longer ``T_v`` approaches ``v_max`` exponentially, continuously in ``v``);
 * the acceleration bound ``A`` (optional: ``acceleration_bounds=False`` leaves
   the accelerations to the torque limits of a higher level, ``A`` then only
   being the braking assumption);
@@ -27,14 +37,39 @@ state viable (the braking distance ``v^2 / (2 A)`` is exact for piecewise
 constant accelerations), so ``-A <= ub`` at every viable state: the bounds
 never ask for more deceleration than ``A``. If the bounds cross at a state
 that is not viable (e.g. ``|v| > v_max`` after a disturbance), both are set to
-the braking acceleration ``-A sign(v)``.
+the braking acceleration ``-A_r sign(v)``.
 
-``A`` must be an acceleration the robot can always produce for the joint.
-Pass it as ``qdd_max`` (scalar or per joint, constant: the viability argument
-of the paper assumes constant bounds), e.g. computed once at a nominal
-configuration with :func:`max_acceleration_from_torques`. Without
-``qdd_max``, that estimate is recomputed at every state (state-dependent
-``A``: viability then holds only approximately).
+``A`` must be a deceleration the robot can always produce for the joint,
+*with the rest of the stack in force*. Pass it as ``qdd_max`` (scalar or per
+joint, constant: the viability argument of the paper assumes constant bounds),
+e.g. computed once at a nominal configuration with
+:func:`max_acceleration_from_torques`. Without ``qdd_max``, that estimate is
+recomputed at every state (state-dependent ``A``: viability then holds only
+approximately).
+
+The braking assumption and the acceleration bound may differ: ``braking``
+(per joint) sets the ``A`` of the viability bound, ``qdd_max`` the bound
+``A_max`` on ``|qdd|``. On a standing robot this matters: a joint whose
+braking moves the body about its supports (an ankle: the whole robot about
+the sole) can only be braked as fast as the contacts allow (about 1 rad/s^2
+where the centre of pressure must stay in the sole), while bounding its
+acceleration that low would lock the joint that balance needs. With
+``braking = A`` small and ``qdd_max`` large, the joint moves freely far from
+its limits, approaches them no faster than ``sqrt(2 A d)`` (``d`` the
+distance left), and then needs no more than ``A`` to stop. ``reserve``
+bounds what the bounds ask beyond ``A`` when a state is not viable (a
+disturbance, an impact, a realised deceleration short of the commanded one):
+at most ``A_r = min(A_max, reserve A)``, e.g. ``reserve = 2`` when ``A`` is
+half of what the robot can do; a measured velocity spike at an impact then
+does not turn into a full-strength braking demand on a joint that can only be
+braked through the contacts.
+
+A state past a position limit (after a disturbance, or a conflict with a
+higher level) is driven back: the bound toward the violated limit becomes
+``(v_r - v) / dt`` with the return velocity ``v_r = -min(v_max, sqrt(2 A e))``
+(``e`` the excursion), clipped to ``[-A_r, A_r]`` (the one-step bound
+would ask for ``2 e / dt^2``, and the plain viability bound brakes away from
+the range when the joint is at rest outside it).
 """
 
 from __future__ import annotations
@@ -150,23 +185,47 @@ def _upper_bounds(
     q_max: np.ndarray,
     v_max: np.ndarray,
     A: np.ndarray,
+    B: np.ndarray,
+    cap: np.ndarray,
     dt: float,
     clip: bool,
+    v_time: float = 0.0,
 ) -> np.ndarray:
-    """Upper acceleration bounds toward ``q_max`` (one-step, viability, velocity, acceleration)."""
-    pos = 2.0 * (q_max - q - dt * v) / dt**2
-    vel = (v_max - v) / dt
+    """Upper acceleration bounds toward ``q_max`` (one-step, viability, velocity, acceleration).
+
+    ``A`` ``(k,)``: bound on ``|qdd|`` [rad/s^2] (applied when ``clip``); ``B`` ``(k,)``: the
+    braking deceleration of the viability bound; ``cap`` ``(k,)``: the largest deceleration
+    asked at a state that is not viable or past the limit (``B <= cap <= A``); ``v_time``:
+    time constant of the velocity bound [s] (``dt`` when smaller).
+    """
+    # One-step bound valid for the exact step and for the semi-implicit Euler step of
+    # simulators (MuJoCo: q+ = q + dt v+), see the module docstring.
+    room = q_max - q - dt * v
+    pos = np.minimum(2.0 * room, room) / dt**2
+    vel = (v_max - v) / max(dt, v_time)
     via = np.full_like(q, np.inf)
-    finite = np.isfinite(A) & np.isfinite(q_max)
+    finite = np.isfinite(B) & np.isfinite(q_max)
     if np.any(finite):
-        Af = A[finite]
+        Bf, Cf = B[finite], cap[finite]
         qf, vf, qm = q[finite], v[finite], q_max[finite]
-        b = dt * (2.0 * vf + Af * dt)
-        c = vf**2 + 2.0 * Af * (qf + dt * vf - qm)
+        b = dt * (2.0 * vf + Bf * dt)
+        c = vf**2 + 2.0 * Bf * (qf + dt * vf - qm)
         disc = b**2 - 4.0 * dt**2 * c
         root = (-b + np.sqrt(np.maximum(disc, 0.0))) / (2.0 * dt**2)
-        via[finite] = np.where(disc >= 0.0, root, -Af)
-    return np.minimum.reduce([pos, vel, via, A] if clip else [pos, vel, via])
+        # Not viable for B: brake with what stops the joint at the limit, within [B, A].
+        with np.errstate(divide="ignore", invalid="ignore"):
+            needed = np.maximum(vf, 0.0) ** 2 / (2.0 * np.maximum(qm - qf, 1e-12))
+        brake = -np.minimum(Cf, np.maximum(Bf, needed))
+        # A root below -B is the one-step return to the braking curve of a state that is not
+        # viable either: brake gracefully there too.
+        via[finite] = np.where(disc >= 0.0, np.maximum(root, brake), brake)
+    bound = np.minimum.reduce([pos, vel, via, A] if clip else [pos, vel, via])
+    # Past the limit: return at the speed of the braking curve (see the module docstring).
+    out = finite & (q > q_max)
+    if np.any(out):
+        v_ret = -np.minimum(v_max[out], np.sqrt(2.0 * B[out] * (q[out] - q_max[out])))
+        bound[out] = np.clip((v_ret - v[out]) / dt, -cap[out], cap[out])
+    return bound
 
 
 class JointLimits(Task):
@@ -177,10 +236,18 @@ class JointLimits(Task):
 
     Args:
         name: Task name.
-        qdd_max: Maximum deceleration ``A`` per actuated joint ``(na,)`` or a
+        qdd_max: Maximum acceleration ``A_max`` per actuated joint ``(na,)`` or a
             scalar [rad/s^2] (> 0, ``inf`` allowed); ``None``: estimated at each
             state by :func:`max_acceleration_from_torques` with ``margin`` and
             ``supports``.
+        braking: Deceleration ``A`` assumed by the viability bound, per actuated
+            joint ``(na,)`` or a scalar [rad/s^2] (> 0, ``inf`` allowed); taken
+            as ``min(braking, A_max)``. ``None``: ``A_max``.
+        velocity_time: Time constant ``T_v`` of the velocity bound [s] (>= 0;
+            ``dt`` when smaller), see the module docstring.
+        reserve: Factor (>= 1, ``inf`` allowed) on the braking deceleration: the
+            bounds ask for at most ``min(A_max, reserve * A)`` at a state that is
+            not viable or past a limit (module docstring).
         margin: Fraction used by the estimate (``qdd_max=None`` only).
         supports: Frames held by the environment, for the estimate
             (``qdd_max=None`` only).
@@ -207,6 +274,9 @@ class JointLimits(Task):
         name: str = "joint_limits",
         qdd_max: np.ndarray | float | None = None,
         *,
+        braking: np.ndarray | float | None = None,
+        reserve: float = np.inf,
+        velocity_time: float = 0.0,
         margin: float = 0.5,
         supports: Sequence[str] | None = None,
         position_margin: float = 0.0,
@@ -223,6 +293,18 @@ class JointLimits(Task):
             if np.any(arr <= 0):
                 raise InvalidGain(f"{w}: qdd_max must be > 0, got {arr}")
             self.qdd_max = arr
+        self.braking: np.ndarray | None = None
+        if braking is not None:
+            arr = check_array(np.atleast_1d(braking), (None,), f"{w}: braking", allow_inf=True)
+            if np.any(arr <= 0):
+                raise InvalidGain(f"{w}: braking must be > 0, got {arr}")
+            self.braking = arr
+        if np.isnan(reserve) or reserve < 1.0:
+            raise InvalidGain(f"{w}: reserve must be >= 1, got {reserve}")
+        self.reserve = float(reserve)
+        if not (np.isfinite(velocity_time) and velocity_time >= 0.0):
+            raise InvalidGain(f"{w}: velocity_time must be finite and >= 0, got {velocity_time}")
+        self.velocity_time = float(velocity_time)
         if not (0.0 < margin <= 1.0):
             raise InvalidGain(f"{w}: margin must be in (0, 1], got {margin}")
         if not (np.isfinite(position_margin) and position_margin >= 0.0):
@@ -255,6 +337,23 @@ class JointLimits(Task):
             )
         return np.broadcast_to(self.qdd_max, (state.na,)).astype(float)
 
+    def braking_deceleration(self, state: RobotModel) -> np.ndarray:
+        """Return the deceleration ``A`` ``(na,)`` of the viability bound at ``state``.
+
+        Raises:
+            InvalidGain: ``braking`` or ``qdd_max`` of a size other than 1 or ``na``.
+
+        """
+        A = self.max_acceleration(state)
+        if self.braking is None:
+            return A
+        if self.braking.size not in (1, state.na):
+            raise InvalidGain(
+                f"{self.where()}: braking has {self.braking.size} entries, "
+                f"robot has {state.na} joints"
+            )
+        return np.minimum(np.broadcast_to(self.braking, (state.na,)), A)
+
     def bounds(self, state: RobotModel, dt: float) -> tuple[np.ndarray, np.ndarray]:
         """Acceleration bounds ``(lb, ub)``, each ``(na,)``, at ``state`` for the period ``dt``.
 
@@ -270,13 +369,18 @@ class JointLimits(Task):
         q_hi = state.q_upper - self.position_margin
         v_max = self.velocity_scale * state.v_max
         A = self.max_acceleration(state)
+        B = self.braking_deceleration(state)
         clip = self.acceleration_bounds
-        ub = _upper_bounds(q, v, q_hi, v_max, A, dt, clip)
-        lb = -_upper_bounds(-q, -v, -q_lo, v_max, A, dt, clip)
+        cap = np.minimum(A, self.reserve * B)
+        T_v = self.velocity_time
+        ub = _upper_bounds(q, v, q_hi, v_max, A, B, cap, dt, clip, T_v)
+        lb = -_upper_bounds(-q, -v, -q_lo, v_max, A, B, cap, dt, clip, T_v)
         crossed = lb > ub
         if np.any(crossed):
-            brake = np.where(v >= 0.0, -A, A)
+            brake = np.where(v >= 0.0, -cap, cap)
             brake = np.where(np.isfinite(brake), brake, np.where(v >= 0.0, ub, lb))
+            # Past a position limit, the return toward the range wins (module docstring).
+            brake = np.where(q > q_hi, ub, np.where(q < q_lo, lb, brake))
             lb = np.where(crossed, brake, lb)
             ub = np.where(crossed, brake, ub)
         ub = np.where(ub > self.inactive_beyond, np.inf, ub)
