@@ -321,6 +321,7 @@ class HierarchicalSolver:
         self._warm_skip: dict[Any, int] = {}
         self._needed_qp: dict[Any, tuple[int, int, int]] = {}
         self._norm_levels: dict[int, list[tuple[CheckedLevel, int]]] = {}
+        self._bufs: dict[Any, tuple[tuple[int, int, int, int], tuple[np.ndarray, ...]]] = {}
 
     def reset(self) -> None:
         """Forget the persistent QPs (the next solve starts cold)."""
@@ -340,6 +341,37 @@ class HierarchicalSolver:
         if point is None or point.shape != (self._n,):
             return None
         return Guess(memo[0], memo[1][gid])
+
+    def _buffers(
+        self, slot: Any, r: int, mi: int, p: int, q: int
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Preallocated matrices of a level QP over ``(v, w)``, ``v`` ``(r,)``, ``w`` ``(mi,)``.
+
+        ``H`` ``(r+mi, r+mi)`` with its slack block ``I`` set, ``g`` ``(r+mi,)``,
+        inequality rows ``(p+mi, r+mi)`` with the slack block ``-I`` in the last
+        ``mi`` rows (the basis algorithm stacks the level's rows first: they are
+        then given as ``p = 0`` rows after ``mi`` carried ones, see the caller),
+        and equality rows ``(q, r+mi)``. The caller overwrites the ``v`` blocks;
+        the slack blocks are never written, so the buffers are reused while the
+        shapes hold (kept per slot).
+        """
+        key = (r, mi, p, q)
+        entry = self._bufs.get(slot)
+        if entry is not None and entry[0] == key:
+            return entry[1]
+        nv = r + mi
+        H = np.zeros((nv, nv))
+        H[r:, r:] = np.eye(mi)
+        g = np.zeros(nv)
+        Cq = np.zeros((p + mi, nv))
+        if self.algorithm == "basis":
+            Cq[:mi, r:] = -np.eye(mi)  # level rows first, carried rows after
+        else:
+            Cq[p:, r:] = -np.eye(mi)  # held rows first, level rows after
+        Eq = np.zeros((q, nv))
+        bufs = (H, g, Cq, Eq)
+        self._bufs[slot] = (key, bufs)
+        return bufs
 
     def _warm_slot(self, slot: Any) -> bool:
         """Whether the slot uses the warm start in this solve (see :data:`WARM_SKIP`)."""
@@ -557,17 +589,10 @@ class HierarchicalSolver:
                                     glr if carried else None,
                                     gur if carried else None)
                     else:
-                        nv = r + mi
-                        p = G.shape[0]
-                        H = np.zeros((nv, nv))
+                        H, g, Cq = self._buffers(k, r, mi, G.shape[0], 0)[:3]
                         H[:r, :r] = H11
-                        dg = np.arange(r, nv)
-                        H[dg, dg] = 1.0
-                        g = np.zeros(nv)
                         g[:r] = g1
-                        Cq = np.zeros((mi + p, nv))
                         Cq[:mi, :r] = Ck
-                        Cq[np.arange(mi), dg] = -1.0
                         if carried:
                             Cq[mi:, :r] = Gk
                         lo = np.concatenate((lo_r, glr))
@@ -756,18 +781,13 @@ class HierarchicalSolver:
         mi = C.shape[0]
         p = G.shape[0]
         q = E.shape[0]
-        nv = n + mi
-        H = np.zeros((nv, nv))
+        H, g, Cq, Eq = self._buffers(slot, n, mi, p, q)
         H[:n, :n] = A.T @ A
-        H[np.arange(n, nv), np.arange(n, nv)] = 1.0
-        g = np.zeros(nv)
-        g[:n] = -(A.T @ b)
-        Eq = np.zeros((q, nv))
+        g[:n] = A.T @ b
+        np.negative(g, out=g)
         Eq[:, :n] = E
-        Cq = np.zeros((p + mi, nv))
         Cq[:p, :n] = G
         Cq[p:, :n] = C
-        Cq[np.arange(p, p + mi), np.arange(n, nv)] = -1.0
         lo = np.concatenate([gl, lv.lower])
         up = np.concatenate([gu, lv.upper])
         # Earlier equality rows are held at their values at the current point,
