@@ -125,13 +125,27 @@ def _matrix(value: Any, k: int, name: str, field: str) -> np.ndarray:
 def _vector(value: Any, m: int, k: int, name: str, field: str, *, fill: float,
             allow_inf: bool) -> np.ndarray:
     if value is None:
-        return np.full(m, fill)
+        return _constant(m, fill)
     arr = _as_float(value, k, name, field)
     if arr.ndim == 0 and m == 1:
         arr = arr.reshape(1)
     if arr.shape != (m,):
         raise InvalidLevel(f"{_where(k, name, field)}: expected shape ({m},), got {arr.shape}")
     _finite_or_raise(arr, k, name, field, allow_inf)
+    return arr
+
+
+_CONSTANTS: dict[tuple[int, float], np.ndarray] = {}
+
+
+def _constant(m: int, fill: float) -> np.ndarray:
+    """Return a read-only ``(m,)`` array of ``fill`` (shared: levels never write their arrays)."""
+    arr = _CONSTANTS.get((m, fill))
+    if arr is None:
+        arr = np.full(m, fill)
+        arr.flags.writeable = False
+        if len(_CONSTANTS) < 256:
+            _CONSTANTS[(m, fill)] = arr
     return arr
 
 
@@ -202,8 +216,8 @@ def check_level(level: Any, k: int, n: int | None) -> CheckedLevel:
             )
         # max(1, |bound|), and a huge finite scale for infinite bounds (whose
         # tolerance never matters: nothing is near an infinite bound)
-        lo_s = np.clip(np.abs(lower), 1.0, 1e300)
-        up_s = np.clip(np.abs(upper), 1.0, 1e300)
+        lo_s = np.minimum(np.maximum(np.abs(lower), 1.0), 1e300)
+        up_s = np.minimum(np.maximum(np.abs(upper), 1.0), 1e300)
         bounded = (lower > -np.inf) | (upper < np.inf)
     a_scale = float(np.abs(A).max()) if A.shape[0] and A.shape[1] else 0.0
     c_scale = float(np.abs(C).max()) if C.shape[0] and C.shape[1] else 0.0
@@ -234,7 +248,7 @@ def trusted_level(level: Level, n: int) -> CheckedLevel:
         A = np.asarray(A, dtype=float)
         if A.ndim == 1:
             A = A[None, :]
-        b = np.zeros(A.shape[0]) if level.b is None else np.asarray(level.b, dtype=float)
+        b = _constant(A.shape[0], 0.0) if level.b is None else np.asarray(level.b, dtype=float)
     C = level.C
     if C is None:
         C = np.zeros((0, n))
@@ -245,12 +259,12 @@ def trusted_level(level: Level, n: int) -> CheckedLevel:
         if C.ndim == 1:
             C = C[None, :]
         m = C.shape[0]
-        lower = np.full(m, -np.inf) if level.lower is None else np.asarray(level.lower,
-                                                                           dtype=float)
-        upper = np.full(m, np.inf) if level.upper is None else np.asarray(level.upper,
-                                                                          dtype=float)
-        lo_s = np.clip(np.abs(lower), 1.0, 1e300)
-        up_s = np.clip(np.abs(upper), 1.0, 1e300)
+        lower = _constant(m, -np.inf) if level.lower is None else np.asarray(level.lower,
+                                                                             dtype=float)
+        upper = _constant(m, np.inf) if level.upper is None else np.asarray(level.upper,
+                                                                            dtype=float)
+        lo_s = np.minimum(np.maximum(np.abs(lower), 1.0), 1e300)
+        up_s = np.minimum(np.maximum(np.abs(upper), 1.0), 1e300)
         bounded = (lower > -np.inf) | (upper < np.inf)
     a_scale = float(np.abs(A).max()) if A.size else 0.0
     c_scale = float(np.abs(C).max()) if C.size else 0.0
