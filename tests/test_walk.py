@@ -93,6 +93,17 @@ def test_walk_plan_rejects_unknown_and_negative_parameters() -> None:
         PlacoWalkPlanner("robot.urdf", {"unload_lead": -0.1}, foot_length=0.2, foot_width=0.1)
 
 
+def test_behavior_backend_key_is_checked() -> None:
+    from hqp.behaviors.loader import load_behavior, parse_behavior
+
+    assert load_behavior("walk").backend == "daqp"
+    text = ('[behavior]\ninitial = "a"\nbackend = "cplex"\n'
+            '[tasks.p]\ntype = "posture"\ngoal = "standing"\n'
+            '[actions.a]\ntasks = ["p"]\n[phases.a]\naction = "a"\nfinal = true\n')
+    with pytest.raises(BehaviorFileError, match=r":3: behavior.backend: unknown QP backend"):
+        parse_behavior(text)
+
+
 @pytest.mark.slow
 def test_walk_makes_eight_footsteps_forward() -> None:
     from hqp.behaviors.runner import run_behavior
