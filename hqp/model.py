@@ -306,7 +306,10 @@ class RobotModel:
         return J
 
     def frame_velocity(self, name: str, reference: pin.ReferenceFrame = LWA) -> np.ndarray:
-        """Frame spatial velocity ``(6,)`` ``[linear; angular]`` (computed once per update)."""
+        """Frame spatial velocity ``(6,)`` ``[linear; angular]`` (computed once per update).
+
+        The array is shared by every caller of the step: read it, do not modify it.
+        """
         key = (name, reference, 1)
         w = self._frame_cache.get(key)
         if w is None:
@@ -318,7 +321,8 @@ class RobotModel:
         """Classical acceleration of a frame at ``qdd = 0`` ``(6,)`` ``[linear; angular]``.
 
         With ``J`` the frame Jacobian, the frame's classical acceleration is
-        ``J qdd + frame_drift`` (computed once per update).
+        ``J qdd + frame_drift`` (computed once per update; the array is shared by every caller
+        of the step: read it, do not modify it).
         """
         key = (name, reference, 2)
         a = self._frame_cache.get(key)
