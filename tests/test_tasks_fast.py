@@ -160,3 +160,20 @@ def test_contact_dynamics_shared_per_update_results_independent(robot: RobotMode
                                atol=1e-12 * max(1.0, np.abs(tau).max()))
     robot.update(robot.random_configuration(rng), rng.normal(size=robot.nv))
     assert contact_dynamics_matrix(robot, layout) is not G
+
+
+def test_contact_dynamics_with_slots_out_of_order(robot: RobotModel) -> None:
+    """A hand-made layout whose slots are not back to back is filled slot by slot."""
+    from hqp.layout import ContactSlot
+
+    nv = robot.nv
+    layout = Layout(nv, (ContactSlot("b", "rarm_effector_body", ContactType.POINT, nv + 6),
+                         ContactSlot("a", "rleg_effector_body", ContactType.SURFACE, nv)))
+    rng = np.random.default_rng(8)
+    robot.update(robot.random_configuration(rng), rng.normal(size=robot.nv))
+    T, _ = torque_map(robot, layout)
+    Ja = robot.frame_jacobian("rleg_effector_body")
+    Jb = robot.frame_jacobian("rarm_effector_body")[:3]
+    np.testing.assert_array_equal(T, np.hstack([robot.M, -Ja.T, -Jb.T])[robot.actuated])
+    np.testing.assert_array_equal(
+        generalized_contact_matrix(robot, layout), np.hstack([Ja.T, Jb.T]))

@@ -121,9 +121,23 @@ def _contact_dynamics(
     state: RobotModel, layout: Layout, where: str
 ) -> tuple[Layout, np.ndarray]:
     nv = layout.nv
-    G = np.zeros((nv, layout.n))
-    G[:, :nv] = state.M
-    _contact_columns(state, layout, G, slice(None), where)
+    blocks = [state.M]
+    start = nv
+    for slot in layout.contacts:
+        if slot.start != start:  # slots not back to back (a hand-made layout): fill in place
+            blocks = []
+            break
+        if where:
+            state.frame_id(slot.frame, where)
+        k = slot.size
+        blocks.append(-state.frame_jacobian(slot.frame)[:k].T)
+        start += k
+    if blocks and start == layout.n:
+        G = np.concatenate(blocks, axis=1)
+    else:
+        G = np.zeros((nv, layout.n))
+        G[:, :nv] = state.M
+        _contact_columns(state, layout, G, slice(None), where)
     G.flags.writeable = False
     return layout, G
 
