@@ -12,13 +12,19 @@ controller can attribute residuals to tasks.
 
 Changes at runtime, without a jump in the motion:
 
-* **Adding a task** ramps it in from zero effect. For a ramp fraction ``s`` rising from 0 to 1
-  along a minimum-jerk profile over ``ramp_time``, the task's equality target becomes
-  ``b_s = s b + (1 - s) A x_prev`` (``x_prev``: the previous solution) and its inequality
-  bounds are widened to contain ``C x_prev`` and narrowed back: at ``s = 0`` the previous
-  solution satisfies the new task exactly, so it is still the lexicographic optimum (levels
-  above are unchanged; at the task's level the added cost is zero at ``x_prev``; levels below
-  are optimised over a subset that still contains it), and the torques start continuous.
+* **Adding a task** ramps it in from zero effect (bumpless transfer). At the first step after
+  the addition, the offset ``d = A x_prev - b`` between what the previous solution ``x_prev``
+  does along the task and what the task asks is recorded (for inequality rows, how far
+  ``C x_prev`` lies outside the bounds); then, for a ramp fraction ``s`` rising from 0 to 1
+  along a minimum-jerk profile over ``ramp_time``, the task's equality target is
+  ``b_s = b + (1 - s) d`` and its bounds are widened by ``(1 - s)`` times their offsets. At
+  ``s = 0`` the previous solution satisfies the new task exactly, so it is still the
+  lexicographic optimum (levels above are unchanged; at the task's level the added cost is zero
+  at ``x_prev``; levels below are optimised over a subset that still contains it), and the
+  torques start continuous. The offset is frozen at the addition while ``b`` is the task's own
+  target at every step, so the task's feedback (its damping) acts from the first step; pinning
+  the target to the previous step's ``A x_prev`` instead would hold the task's acceleration
+  constant through the ramp and let its velocity run away.
   Besides, a tracking task with a fixed goal and ``move_to`` (the primitives of
   :mod:`hqp.tasks`) starts from zero error: its goal starts at the current value and follows a
   minimum-jerk trajectory to the requested goal over the same ``ramp_time``.
@@ -80,6 +86,7 @@ class _TaskEntry:
     ramp_time: float
     contact: str | None = None
     goal_ramp_pending: bool = False
+    offsets: tuple[np.ndarray | None, np.ndarray | None, np.ndarray | None] | None = None
 
 
 @dataclass
@@ -540,7 +547,9 @@ class Stack:
             s = 1.0
             if entry.ramp_time > 0.0 and t < entry.added_at + entry.ramp_time:
                 s = min_jerk((t - entry.added_at) / entry.ramp_time)
-                rows = _ramp(rows, s, x_prev)
+                if entry.offsets is None or not _offsets_fit(entry.offsets, rows):
+                    entry.offsets = _ramp_offsets(rows, x_prev)
+                rows = _ramp(rows, s, entry.offsets)
             per_level[entry.level].append((entry.task.name, rows, entry.task.weight, s, False))
 
         levels: list[Level] = []
@@ -640,19 +649,46 @@ def _check_columns(rows: Rows, n: int, where: str) -> None:
             raise InvalidInput(f"{where}: rows {label} has shape {M.shape}, expected (*, {n})")
 
 
-def _ramp(rows: Rows, s: float, x_prev: np.ndarray | None) -> Rows:
-    """Rows of a task ramping in: the previous solution satisfies them at ``s = 0``."""
-    if x_prev is None:
-        x_prev = np.zeros(rows.A.shape[1] if rows.A is not None else rows.C.shape[1])  # type: ignore[union-attr]
-    A, b, C, lower, upper = rows.A, rows.b, rows.C, rows.lower, rows.upper
-    if A is not None and b is not None:
-        b = s * b + (1.0 - s) * (A @ x_prev)
-    if C is not None:
-        cx = C @ x_prev
-        if lower is not None:
-            relaxed = np.minimum(lower, cx)
-            lower = np.where(np.isfinite(lower), s * lower + (1.0 - s) * relaxed, lower)
-        if upper is not None:
-            relaxed = np.maximum(upper, cx)
-            upper = np.where(np.isfinite(upper), s * upper + (1.0 - s) * relaxed, upper)
-    return Rows(A, b, C, lower, upper)
+Offsets = tuple[np.ndarray | None, np.ndarray | None, np.ndarray | None]
+
+
+def _ramp_offsets(rows: Rows, x_prev: np.ndarray | None) -> Offsets:
+    """Offsets ``(d_eq, d_lower, d_upper)`` of a task's rows at ``x_prev`` (zeros if ``None``).
+
+    ``d_eq = A x_prev - b``; ``d_lower = min(0, C x_prev - lower)`` and
+    ``d_upper = max(0, C x_prev - upper)`` on finite bounds (0 elsewhere).
+    """
+    n = rows.A.shape[1] if rows.A is not None else rows.C.shape[1]  # type: ignore[union-attr]
+    x = np.zeros(n) if x_prev is None else x_prev
+    d_eq = None if rows.A is None or rows.b is None else rows.A @ x - rows.b
+    d_lo = d_up = None
+    if rows.C is not None:
+        cx = rows.C @ x
+        if rows.lower is not None:
+            d_lo = np.where(np.isfinite(rows.lower), np.minimum(cx - rows.lower, 0.0), 0.0)
+        if rows.upper is not None:
+            d_up = np.where(np.isfinite(rows.upper), np.maximum(cx - rows.upper, 0.0), 0.0)
+    return d_eq, d_lo, d_up
+
+
+def _offsets_fit(offsets: Offsets, rows: Rows) -> bool:
+    """Whether recorded offsets still match the task's row counts (tasks may change them)."""
+    d_eq, d_lo, d_up = offsets
+    return ((d_eq is None) == (rows.b is None) and (d_eq is None or d_eq.shape == rows.b.shape)
+            and (d_lo is None) == (rows.lower is None)
+            and (d_lo is None or d_lo.shape == rows.lower.shape)  # type: ignore[union-attr]
+            and (d_up is None) == (rows.upper is None)
+            and (d_up is None or d_up.shape == rows.upper.shape))  # type: ignore[union-attr]
+
+
+def _ramp(rows: Rows, s: float, offsets: Offsets) -> Rows:
+    """Rows of a task ramping in: ``b + (1 - s) d_eq``, bounds widened by ``(1 - s)`` offsets."""
+    d_eq, d_lo, d_up = offsets
+    b, lower, upper = rows.b, rows.lower, rows.upper
+    if b is not None and d_eq is not None:
+        b = b + (1.0 - s) * d_eq
+    if lower is not None and d_lo is not None:
+        lower = lower + (1.0 - s) * d_lo
+    if upper is not None and d_up is not None:
+        upper = upper + (1.0 - s) * d_up
+    return Rows(rows.A, b, rows.C, lower, upper)

@@ -122,6 +122,32 @@ def test_task_ramp_starts_at_previous_solution(humanoid):
     assert end.rows["bound"].lower[0] == 2.0 and end.span("com").ramp == 1.0
 
 
+def test_task_ramp_offset_is_frozen_so_the_task_feedback_acts(humanoid):
+    # The offset A x_prev - b is taken once, at the addition: later steps use the task's own
+    # target at the new state plus (1 - s) times that offset, whatever the previous solution.
+    # (Pinning the target to the previous step's A x_prev would hold the task's acceleration
+    # constant through the ramp and let its velocity run away.)
+    m, q = humanoid
+    layout = Layout.build(m.nv)
+    st = Stack(ramp_time=0.2)
+    task = ComStandIn("com", m.com[:2] + 0.05)
+    st.add(task, t=1.0)
+    rng = np.random.default_rng(1)
+    x_add = rng.normal(size=layout.n)
+    full0 = task.rows(m, layout, 1e-3, 1.0)
+    st.build(m, layout, 1e-3, 1.0, x_add)
+    offset = full0.A @ x_add - full0.b
+    v = 0.3 * rng.normal(size=m.nv)  # the robot moved: the task's damping changes its target
+    m.update(q, v)
+    try:
+        full = task.rows(m, layout, 1e-3, 1.1)
+        assert np.linalg.norm(full.b - full0.b) > 1e-2
+        mid = st.build(m, layout, 1e-3, 1.1, rng.normal(size=layout.n))  # any x_prev
+        np.testing.assert_allclose(mid.rows["com"].b, full.b + 0.5 * offset, atol=1e-12)
+    finally:
+        m.update(q, np.zeros(m.nv))
+
+
 def test_contact_unloading_then_release(humanoid):
     m, q = humanoid
     st = Stack(unload_time=0.1)
