@@ -39,7 +39,7 @@ from hqp.tasks.dynamics import joint_torques
 if TYPE_CHECKING:
     from hqp.model import RobotModel, RobotState
     from hqp.robots import Robot
-    from hqp.solver import Solution
+    from hqp.solver import HierarchicalSolver, Solution
     from hqp.stack import BuiltStack, Stack, TaskSpan
     from hqp.tasks.base import Category, Rows, Task
 
@@ -391,6 +391,7 @@ class WholeBodyController(Controller):
         self._blend_delta = np.zeros(robot_model.na)
         self._blend_notes: tuple[str, ...] = ()
         self._yield_guess: dict[str, int] = {}
+        self._fallback_solver: HierarchicalSolver | None = None
 
     # -- one step ---------------------------------------------------------------------------
 
@@ -472,24 +473,50 @@ class WholeBodyController(Controller):
         from hqp.errors import HQPError
 
         self.last_solution = None
-        try:
-            self.last_solution = self.solver.solve(
-                built.levels, final_metric=self.final_metric, final_target=self.final_target
-            )
-        except HQPError as exc:
-            notes.append(f"solve failed: {exc}")
-            logger.warning("t=%.4f: solve failed (%s); safe command sent", t, exc)
+        failure = ""
+        for solver in (self.solver, None):
+            if solver is None:  # the primary backend failed: one retry on the fallback
+                solver = self._fallback()
+                if solver is None:
+                    break
+                notes.append(f"{failure}; solved again with backend {solver.backend_name!r}")
+                logger.info("t=%.4f: %s; retrying with %s", t, failure, solver.backend_name)
+            try:
+                solution = solver.solve(
+                    built.levels, final_metric=self.final_metric, final_target=self.final_target
+                )
+            except HQPError as exc:
+                failure = f"solve failed: {exc}"
+                continue
+            if not np.all(np.isfinite(solution.x)):
+                failure = "solver returned non-finite values"
+                continue
+            self.last_solution = solution
+            break
+        if self.last_solution is None:
+            notes.append(failure)
+            logger.warning("t=%.4f: %s; safe command sent", t, failure)
             return None
         x = self.last_solution.x
-        if not np.all(np.isfinite(x)):
-            notes.append("solver returned non-finite values")
-            logger.warning("t=%.4f: non-finite solution; safe command sent", t)
-            return None
         tau = self.torques(x)
         if not np.all(np.isfinite(tau)):
             notes.append("non-finite torques")
             return None
         return x, tau
+
+    def _fallback(self) -> HierarchicalSolver | None:
+        """Return the solver of the fallback backend (created once), or ``None`` if none.
+
+        DAQP (an exact active-set method) backs up the other backends, quadprog backs up DAQP.
+        """
+        from hqp.solver import HierarchicalSolver, available_backends  # noqa: F811
+
+        if self._fallback_solver is None:
+            name = "daqp" if self.backend != "daqp" else "quadprog"
+            if name not in available_backends():
+                return None
+            self._fallback_solver = HierarchicalSolver(name, self.algorithm)
+        return self._fallback_solver
 
     def _feasibility(
         self, built: BuiltStack, x: np.ndarray | None, notes: list[str]
@@ -728,15 +755,27 @@ def standing_stack(
     sole_margin: float = 0.9,
     torque_scale: float = 1.0,
     contact_kd: float = 0.0,
+    angular_momentum_weight: float = 1e-3,
+    angular_momentum_gain: float = 10.0,
+    ramp_time: float = 0.6,
 ) -> tuple[Stack, list[Task]]:
     """Build the stack of a humanoid standing on both feet, and its contacts.
 
     Levels (default categories): physics (floating-base dynamics, both soles as rigid surface
     contacts); contact and actuation limits (friction pyramids, unilateral forces, centre of
-    pressure in the soles, yaw torques, torque limits); viable joint limits (braking
-    acceleration: the fixed-base torque estimate clipped to [5, 50] rad/s^2); balance (centre of
-    mass over the centre of the feet at its standing height); operational (trunk orientation
-    upright as in the standing configuration); posture (the standing configuration).
+    pressure in the soles, yaw torques, torque limits); viable joint limits (acceleration bound:
+    the fixed-base torque estimate clipped to [5, 50] rad/s^2; braking: what the support allows,
+    see the comments below); balance (centre of mass over the centre of the feet at its standing
+    height, and, weighted in the same level, damping of the centroidal angular momentum);
+    operational (trunk orientation upright as in the standing configuration); posture (the
+    standing configuration).
+
+    The angular-momentum damping matters when the centre-of-mass task asks for more than the
+    support gives (a goal moved faster than the centre of pressure can follow): the centre of
+    mass can then still be accelerated by turning the body (arms, trunk), which a level holding
+    the centre of mass alone does without bound, flailing the arms at their velocity limits and
+    switching their acceleration bounds from step to step. With a small weight the trade only
+    happens in that case: when both are feasible both are met exactly.
 
     Args:
         robot: The bundled robot (feet, contact surfaces, ``q_standing``, ``trunk`` frame).
@@ -749,6 +788,13 @@ def standing_stack(
             of pressure (a margin against tipping on the edge).
         torque_scale: Fraction of the torque limits the controller may use.
         contact_kd: Damping of the contacts' drift stabilisation [1/s].
+        angular_momentum_weight: Weight of the angular-momentum damping in the balance level
+            (the centre-of-mass task has weight 1; rows in [N m] against [m/s^2]); 0 leaves
+            it out.
+        angular_momentum_gain: Its damping [1/s].
+        ramp_time: Default ramp of tasks added at runtime [s] (goal ramps from zero error; a
+            min-jerk goal move of ``d`` over ``T`` asks for a peak feed-forward acceleration
+            of ``5.8 d / T^2``).
 
     Returns:
         ``(stack, contacts)``; pass both to :class:`WholeBodyController`.
@@ -757,6 +803,7 @@ def standing_stack(
     from hqp.layout import ContactType
     from hqp.stack import Stack
     from hqp.tasks.base import Category
+    from hqp.tasks.centroidal import CentroidalMomentumTask
     from hqp.tasks.com import CoMTask, support_center
     from hqp.tasks.contact import Contact
     from hqp.tasks.dynamics import FloatingBaseDynamics
@@ -766,7 +813,7 @@ def standing_stack(
     from hqp.tasks.torque_limits import TorqueLimits
 
     model.update(robot.q_standing, np.zeros(model.nv))
-    stack = Stack()
+    stack = Stack(ramp_time=ramp_time)
     stack.add(FloatingBaseDynamics())
     contacts: list[Task] = []
     for foot in robot.feet:
@@ -794,11 +841,17 @@ def standing_stack(
     support = max_acceleration_from_torques(
         model, margin=0.5, supports=[robot.contact(foot).frame for foot in robot.feet])
     braking = np.where(support > 0.0, np.minimum(0.5 * qdd_max, support), 0.5 * qdd_max)
-    stack.add(JointLimits(qdd_max=qdd_max, braking=braking, reserve=2.0))
+    # Velocity bounds approached over 20 ms rather than in one step (no torque step when a
+    # joint reaches its velocity limit).
+    stack.add(JointLimits(qdd_max=qdd_max, braking=braking, reserve=2.0, velocity_time=0.02))
     com = CoMTask(model, kp=com_kp)
     centre = support_center(model, list(robot.feet))
     com.set_goal(np.array([centre[0], centre[1], model.com[2]]))
     stack.add(com)
+    if angular_momentum_weight > 0.0:
+        stack.add(CentroidalMomentumTask(model, "angular", name="angular_momentum",
+                                         weight=angular_momentum_weight,
+                                         gain=angular_momentum_gain))
     trunk = OrientationTask(model, "trunk", kp=orientation_kp)
     trunk.set_goal(model.frame_placement("trunk").rotation.copy())
     stack.add(trunk)

@@ -130,6 +130,13 @@ def test_safe_mode_when_the_solve_fails(failure, monkeypatch):
         return sol
 
     monkeypatch.setattr(c.solver, "solve", broken)
+    # First the fallback backend takes over: same command as the primary's, reported.
+    backup = c.step(state, DT)
+    assert not backup.safe_mode
+    assert any("solved again with backend" in n for n in backup.report.notes)
+    np.testing.assert_allclose(backup.tau, good.tau, atol=1e-5 * np.abs(good.tau).max())
+    # With the fallback failing too, the safe command is sent.
+    monkeypatch.setattr(c._fallback(), "solve", broken)
     cmd = c.step(state, DT)
     assert cmd.safe_mode and cmd.report.safe_mode and not cmd.report.feasible
     assert np.all(np.isfinite(cmd.tau)) and np.all(np.abs(cmd.tau) <= m.tau_max)
