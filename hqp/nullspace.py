@@ -184,7 +184,7 @@ from __future__ import annotations
 
 import logging
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
@@ -347,6 +347,8 @@ def prioritized_torques(
     eig_tol: float = EIG_TOL,
     internal_forces: str = "none",
     method: str = "whitened",
+    support_weights: Callable[[np.ndarray], np.ndarray] | None = None,
+    weight_passes: int = 3,
 ) -> LawSolution:
     """Compute the prioritised torque law on plain matrices (seed 003 eq. 11-23, Sentis 2010).
 
@@ -366,6 +368,11 @@ def prioritized_torques(
             module docstring; singular values instead of squared ones, so about twice the
             digits) or ``"literal"`` (eq. 15-21 as written, the recursion of eq. 19 on
             ``(na, na)`` projectors).
+        support_weights: For ``"min-norm"``: a function of the support forces ``f (ns,)``
+            returning positive weights ``(ns,)``; the internal forces then minimise
+            ``sum_i w_i(f) f_i^2``, by ``weight_passes`` passes of iteratively reweighted least
+            squares starting from the unweighted choice (default: unit weights).
+        weight_passes: Number of reweighting passes.
 
     Returns:
         The torques, accelerations, support forces and a per-level report.
@@ -460,6 +467,9 @@ def prioritized_torques(
         Df = -Lambda_s @ (Js @ Minv @ S.T @ Z_int)
         f_plain = Lambda_s @ (bs - Js @ Minv @ (S.T @ tau - h))
         y_int = np.linalg.lstsq(Df, -f_plain, rcond=None)[0]
+        for _ in range(weight_passes if support_weights is not None else 0):
+            sw = np.sqrt(np.asarray(support_weights(f_plain + Df @ y_int), dtype=float))
+            y_int = np.linalg.lstsq(sw[:, None] * Df, -sw * f_plain, rcond=None)[0]
         tau_int = Z_int @ y_int
         tau = tau + tau_int
 
@@ -901,7 +911,9 @@ class NullSpaceController(_controller_base()):  # type: ignore[misc]
         backend: Accepted for call compatibility with the HQP controller; unused.
         algorithm: Accepted for call compatibility; unused.
         eig_tol: Relative eigenvalue threshold of eq. 22 (:data:`EIG_TOL`).
-        internal_forces: ``"min-norm"`` (default: feet share the load without squeezing) or
+        internal_forces: ``"balanced"`` (least load-weighted use of every contact's centre of
+            pressure and friction, :meth:`_utilization_weights`), ``"min-norm"`` (default:
+            least-norm contact wrenches) or
             ``"none"`` (the plain law); see :func:`prioritized_torques`.
         method: ``"whitened"`` or ``"literal"`` (see :func:`prioritized_torques`).
         tolerance: A task whose unweighted residual norm exceeds this is in conflict.
@@ -961,10 +973,10 @@ class NullSpaceController(_controller_base()):  # type: ignore[misc]
                          damping=damping)
         if not (np.isfinite(eig_tol) and 0.0 < eig_tol < 1.0):
             raise InvalidInput(f"NullSpaceController: eig_tol must be in (0, 1), got {eig_tol}")
-        if internal_forces not in ("none", "min-norm"):
+        if internal_forces not in ("none", "min-norm", "balanced"):
             raise InvalidInput(
-                "NullSpaceController: internal_forces must be 'none' or 'min-norm', "
-                f"got {internal_forces!r}"
+                "NullSpaceController: internal_forces must be 'none', 'min-norm' or "
+                f"'balanced', got {internal_forces!r}"
             )
         if method not in ("whitened", "literal"):
             raise InvalidInput(
@@ -1037,8 +1049,61 @@ class NullSpaceController(_controller_base()):  # type: ignore[misc]
             m.M, m.h, problem.levels,
             S=m.selection() if m.nv_base else None,
             support=problem.support, names=problem.names, eig_tol=self.eig_tol,
-            internal_forces=self.internal_forces, method=self.method,
+            internal_forces="none" if self.internal_forces == "none" else "min-norm",
+            method=self.method,
+            support_weights=(self._utilization_weights(problem)
+                             if self.internal_forces == "balanced" else None),
         )
+
+    def _utilization_weights(
+        self, problem: _LawProblem
+    ) -> Callable[[np.ndarray], np.ndarray] | None:
+        """Weights of the ``"balanced"`` internal forces: least load-weighted utilisation.
+
+        For a surface contact with wrench ``[F; tau]`` (world axes, at its origin), normal
+        force ``f_z``, centre-of-pressure box ``hl x hw`` and friction ``mu``, the utilisation
+        terms are ``u = tau_x / (hw f_z)``, ``tau_y / (hl f_z)`` (centre of pressure over the
+        box), ``tau_z / (min(hl, hw) f_z)`` (yaw) and ``F_x / (mu f_z)``, ``F_y / (mu f_z)``
+        (friction). The cost is their load-weighted sum of squares ``sum f_z u^2 / (m g)`` plus
+        ``(F_z / m g)^2``; with ``f_z`` of the previous pass fixed it is a weighted
+        least-squares cost of the internal forces, whose optimum shares a moment between the
+        contacts in proportion to their loads and moves load between them rather than rolling
+        every foot onto its edge. (``"min-norm"`` weighs 1 N m of foot torque like 1 N of
+        force, so a lateral moment in double support goes into both feet's roll torques while
+        the loads stay equal.) Rows of other kinds keep the weight ``1 / (m g)^2``. Returns
+        ``None`` when the active contacts do not match the support rows.
+        """
+        from hqp.layout import ContactType
+
+        if problem.support is None:
+            return None
+        m = self.model
+        surfaces = []  # (start row in the support, hl, hw, mu)
+        start = 0
+        for name in self.stack.active_contacts:
+            task = self.stack.task(name)
+            kind = getattr(task, "kind", None)
+            size = kind.value if isinstance(kind, ContactType) else 0
+            if kind is ContactType.SURFACE:
+                surfaces.append((start, float(task.half_length), float(task.half_width),
+                                 max(float(task.mu), 1e-3)))
+            start += size
+        ns = problem.support[0].shape[0]
+        if not surfaces or start != ns:
+            return None
+        weight = m.mass * float(np.linalg.norm(m.gravity_vector))
+
+        def weights(f: np.ndarray) -> np.ndarray:
+            w = np.full(ns, 1.0 / weight**2)
+            for i, hl, hw, mu in surfaces:
+                fz = max(float(f[i + 2]), 0.05 * weight)
+                w[i:i + 2] = 1.0 / (mu**2 * fz * weight)
+                w[i + 3] = 1.0 / (max(hw, 1e-3) ** 2 * fz * weight)
+                w[i + 4] = 1.0 / (max(hl, 1e-3) ** 2 * fz * weight)
+                w[i + 5] = 1.0 / (max(min(hl, hw), 1e-3) ** 2 * fz * weight)
+            return w
+
+        return weights
 
     def _constraint_zones(
         self, law: LawSolution, problem: _LawProblem, notes: list[str]

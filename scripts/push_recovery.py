@@ -30,9 +30,11 @@ def survives(robot_name: str, force: float, angle_deg: float, args: argparse.Nam
     from hqp.sim import Push, simulate
 
     robot = robots.load(robot_name)
-    extra = {}
-    if args.controller == "nullspace" and args.law_zones:
-        extra = {"support_zone": args.law_zones[0], "torque_zone": args.law_zones[1]}
+    extra: dict = {}
+    if args.controller == "nullspace":
+        extra["internal_forces"] = args.internal_forces
+        if args.law_zones:
+            extra.update(support_zone=args.law_zones[0], torque_zone=args.law_zones[1])
     controller = make_standing_controller(args.controller, robot, backend=args.backend,
                                           diagnostics="residuals", **extra)
     a = math.radians(angle_deg)
@@ -70,6 +72,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--law-zones", type=float, nargs=2, metavar=("SUPPORT", "TORQUE"),
                    help="null-space law only: support and torque activation zones "
                         "(fractions, e.g. 0.8 0.95; default: the plain law)")
+    p.add_argument("--internal-forces", default="min-norm",
+                   choices=("none", "min-norm", "balanced"),
+                   help="null-space law only: choice of the internal contact forces")
     args = p.parse_args(argv)
 
     results = []
@@ -98,6 +103,7 @@ def main(argv: list[str] | None = None) -> int:
     print(json.dumps({"robot": args.robot, "push_duration_s": args.push_duration,
                       "push_at_s": args.push_at, "run_duration_s": args.duration,
                       "controller": args.controller, "law_zones": args.law_zones,
+                      "internal_forces": args.internal_forces,
                       "backend": args.backend,
                       "directions": results}, indent=1))
     return 0

@@ -433,6 +433,43 @@ def test_internal_forces_change_contact_wrenches_not_accelerations(paper_humanoi
         np.testing.assert_allclose(ctrl.torques(x), cmd.tau, atol=1e-7)
 
 
+
+def test_balanced_internal_forces_move_load_instead_of_rolling_the_feet(paper_humanoid):
+    """A lateral moment in double support: "min-norm" rolls both feet, "balanced" moves load.
+
+    The standing law with its centre of mass pulled 4 mm to the left of the feet centre (a
+    lateral acceleration, hence a lateral moment of the support wrench). The accelerations do
+    not depend on the internal forces. "min-norm" weighs 1 N m like 1 N, so both feet carry
+    the moment as roll torques with equal loads; "balanced" (load-weighted centre-of-pressure
+    and friction use) shifts the load to the left foot and keeps every centre of pressure
+    nearer its sole's centre line. Measured on the law's contact wrenches.
+    """
+    from hqp.model import RobotState
+    from hqp.nullspace import standing_nullspace_controller
+
+    out = {}
+    for mode in ("min-norm", "balanced"):
+        ctrl = standing_nullspace_controller(paper_humanoid, internal_forces=mode)
+        com = [t for t in ctrl.stack.tasks if t.name == "com"][0]
+        com.set_goal(com.goal_at(0.0).position + np.array([0.0, 0.004, 0.0]))
+        cmd = ctrl.step(RobotState(paper_humanoid.q_standing.copy(), np.zeros(ctrl.model.nv)),
+                        0.0)
+        hw = [ctrl.stack.task(n).half_width for n in ctrl.stack.active_contacts]
+        w = [cmd.wrenches[n] for n in ctrl.stack.active_contacts]
+        use = max(abs(wi[3] / wi[2]) / h for wi, h in zip(w, hw))  # |CoP_y| / half-width
+        out[mode] = (cmd, use, [wi[2] for wi in w])
+        assert not any("clipped" in n for n in cmd.report.notes), mode
+        x = np.concatenate([cmd.qdd] + [cmd.wrenches[s.name] for s in ctrl.layout.contacts])
+        np.testing.assert_allclose(ctrl.torques(x), cmd.tau, atol=1e-7)  # dynamics hold
+    np.testing.assert_allclose(out["balanced"][0].qdd, out["min-norm"][0].qdd, atol=1e-9)
+    fz_norm, fz_bal = out["min-norm"][2], out["balanced"][2]
+    assert abs(fz_norm[0] - fz_norm[1]) < 0.05 * sum(fz_norm)  # equal loads, rolled feet
+    assert abs(fz_bal[0] - fz_bal[1]) > 0.1 * sum(fz_bal)  # load moved to one foot
+    assert min(fz_bal) > 0.0  # [N] no foot pulls
+    assert out["min-norm"][1] > 0.8  # |CoP_y| / half-width: both feet near their edge
+    assert out["balanced"][1] < 0.25 * out["min-norm"][1]
+
+
 def test_activation_zone_locks_the_joint_at_the_top(paper_humanoid):
     """Joints inside their zone get the zone's reference acceleration whatever the tasks below
     ask (seed 003 eq. 12, 25): the papers' joint-limit handling."""
