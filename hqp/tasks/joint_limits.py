@@ -13,8 +13,8 @@ each actuated joint gets ``lb <= a <= ub`` with ``ub`` the smallest of
   (``q+ = q + dt v+``, MuJoCo): ``(1 / dt^2) r`` when ``r = q_max - q - dt v``
   is positive (the Euler step moves further), ``(2 / dt^2) r`` when it is
   negative (the exact step brakes less);
-* the viability bound: after the step, braking at the maximum deceleration
-  ``A`` (``qdd_max``) must stop the joint before ``q_max``, i.e.
+* the viability bound: after the step, braking at the deceleration ``A``
+  (``braking``, by default ``qdd_max``) must stop the joint before ``q_max``, i.e.
   ``(v+)^2 <= 2 A (q_max - q+)``, a quadratic in ``a``:
 
       dt^2 a^2 + dt (2 v + A dt) a + v^2 + 2 A (q + dt v - q_max) <= 0,
@@ -28,9 +28,9 @@ each actuated joint gets ``lb <= a <= ub`` with ``ub`` the smallest of
   (``v+ <= v_max``; with ``T_v = dt`` the joint reaches ``v_max`` in one step
   and its acceleration drops from ``A_max`` to 0 at once, a torque step; a
   longer ``T_v`` approaches ``v_max`` exponentially, continuously in ``v``);
-* the acceleration bound ``A`` (optional: ``acceleration_bounds=False`` leaves
-  the accelerations to the torque limits of a higher level, ``A`` then only
-  being the braking assumption);
+* the acceleration bound ``A_max`` (``qdd_max``; optional:
+  ``acceleration_bounds=False`` leaves the accelerations to the torque limits
+  of a higher level, ``A_max`` then only bounding the braking);
 
 and ``lb`` the mirror image. Braking at ``-A`` from a viable state keeps the
 state viable (the braking distance ``v^2 / (2 A)`` is exact for piecewise
