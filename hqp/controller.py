@@ -388,8 +388,10 @@ class WholeBodyController(Controller):
         self.last_built: BuiltStack | None = None
         self.last_solution: Solution | None = None
         self._blend_start: float | None = None
-        self._blend_delta = np.zeros(robot_model.na)
+        self._blend_delta: np.ndarray | None = None
         self._blend_notes: tuple[str, ...] = ()
+        self._blend_contact: str | None = None
+        self._blend_solver: HierarchicalSolver | None = None
         self._yield_guess: dict[str, int] = {}
         self._fallback_solver: HierarchicalSolver | None = None
 
@@ -419,8 +421,11 @@ class WholeBodyController(Controller):
             self._relayout()
             x_prev = None
         built = self.stack.build(self.model, self.layout, self.dt, t, x_prev)
+        self._start_blend(t)
+        before = self._build_before_contact(t, x_prev)
         t2 = clock()
         notes: list[str] = []
+        tau_before = None if before is None else self._solve_before(before, t)
         result = self._solve_built(built, t, notes)
         t3 = clock()
         safe = result is None
@@ -433,7 +438,7 @@ class WholeBodyController(Controller):
             qdd = x[: self.layout.nv].copy()
             wrenches = {c.name: x[c.slice].copy() for c in self.layout.contacts}
             self.last_x = x.copy()
-        tau, suspended = self._blend(tau, t, notes)
+        tau, suspended = self._blend(tau, t, notes, tau_before)
         excess = np.abs(tau) - self.model.tau_max
         if np.any(excess > 0.0):
             # The solver meets the torque-limit rows to its tolerance: entries beyond by less
@@ -575,25 +580,79 @@ class WholeBodyController(Controller):
         tau = np.clip(np.nan_to_num(tau), -m.tau_max, m.tau_max)
         return tau, np.zeros(m.nv), wrenches
 
-    def _blend(self, tau: np.ndarray, t: float, notes: list[str]) -> tuple[np.ndarray, bool]:
-        """Interpolate torques after a change that cannot be ramped (stack blend events)."""
+    def _start_blend(self, t: float) -> None:
+        """Start a torque blend on the stack's blend events of this step (if any).
+
+        A contact made alone is blended between two hierarchies (see :meth:`_blend`); any
+        other change (or several at once) by a decaying offset.
+        """
+        events = self.stack.pop_events()
+        if not events or self.last_tau is None or self.stack.blend_time <= 0.0:
+            return
+        self._blend_start = float(t)
+        self._blend_delta = None  # set by _blend at this step (needs the new torques)
+        self._blend_notes = tuple(e.note for e in events)
+        contacts = {e.contact for e in events}
+        self._blend_contact = contacts.pop() if len(events) == 1 and None not in contacts else None
+
+    def _build_before_contact(self, t: float, x_prev: np.ndarray | None) -> BuiltStack | None:
+        """Levels of the hierarchy without the contact being blended in (``None``: no blend)."""
+        name = self._blend_contact
+        if self._blend_start is None or name is None or name not in self.stack.active_contacts:
+            self._blend_contact = None
+            return None
+        with self.stack.contact_released(name):
+            return self.stack.build(self.model, self.layout, self.dt, t, x_prev)
+
+    def _solve_before(self, before: BuiltStack, t: float) -> np.ndarray | None:
+        """Torques of the hierarchy without the contact being blended in (own solver).
+
+        Solved before the current hierarchy, so that what :meth:`_solve_built` leaves behind
+        (``last_solution``, a subclass's law) is the current hierarchy's.
+        """
+        from hqp.solver import HierarchicalSolver
+
+        if self._blend_solver is None:
+            self._blend_solver = HierarchicalSolver(self.backend, self.algorithm)
+        solver, self.solver = self.solver, self._blend_solver
+        try:
+            result = self._solve_built(before, t, [])
+        finally:
+            self.solver = solver
+        return None if result is None else result[1]
+
+    def _blend(
+        self, tau: np.ndarray, t: float, notes: list[str], tau_before: np.ndarray | None = None
+    ) -> tuple[np.ndarray, bool]:
+        """Interpolate torques over ``blend_time`` after a change that cannot be ramped.
+
+        With ``tau_before`` (a contact just made: the torques of the hierarchy without it, at
+        the current state), ``tau = (1 - s) tau_before + s tau`` for a minimum-jerk fraction
+        ``s`` rising from 0 to 1: the new contact's wrench is phased in and both hierarchies
+        keep their feedback; a step change of the new hierarchy early in the blend reaches the
+        torques scaled by ``s``. Otherwise (a task or contact removed, or the hierarchy
+        without the contact failed) the offset between the last torques and the new ones at
+        the change decays: ``tau + (1 - s) (tau_last - tau_0)``.
+        """
         from hqp.stack import min_jerk
 
-        events = self.stack.pop_events()
-        if events and self.last_tau is not None and self.stack.blend_time > 0.0:
-            self._blend_start = float(t)
-            self._blend_delta = self.last_tau - tau
-            self._blend_notes = tuple(e.note for e in events)
         if self._blend_start is None:
             return tau, False
         s = min_jerk((t - self._blend_start) / self.stack.blend_time)
         if s >= 1.0:
             self._blend_start = None
+            self._blend_contact = None
             return tau, False
         notes.append(
             f"strictness suspended: torques interpolated over {self.stack.blend_time:g} s after "
             + "; ".join(self._blend_notes)
         )
+        if tau_before is not None:
+            self._blend_delta = None
+            return (1.0 - s) * tau_before + s * tau, True
+        if self._blend_delta is None:
+            last = self.last_tau if self.last_tau is not None else tau
+            self._blend_delta = last - tau
         return tau + (1.0 - s) * self._blend_delta, True
 
     # -- report -----------------------------------------------------------------------------

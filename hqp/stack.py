@@ -35,14 +35,18 @@ Changes at runtime, without a jump in the motion:
 * **Changes that cannot be ramped** (removing a task, making a contact, releasing an unloaded
   contact) are recorded as *blend events*; the controller then interpolates its torques from the
   last command to the new hierarchy's over ``blend_time`` and reports that strictness was
-  suspended (see :class:`hqp.controller.WholeBodyController`).
+  suspended (see :class:`hqp.controller.WholeBodyController`). For a contact made, both
+  hierarchies are solved during the blend (the one without the contact inside
+  :meth:`Stack.contact_released`) and their torques interpolated, so that the new contact's
+  wrench is phased in and the old hierarchy's feedback stays active.
 """
 
 from __future__ import annotations
 
+import contextlib
 import enum
 import math
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
@@ -167,11 +171,15 @@ class BlendEvent:
     Attributes:
         t: Time of the change [s].
         note: What changed.
+        contact: Name of the contact made, for a contact made at runtime (the controller then
+            interpolates between the torques of the hierarchy without and with it, see
+            :meth:`Stack.contact_released`); ``None`` for other changes.
 
     """
 
     t: float
     note: str
+    contact: str | None = None
 
 
 class Stack:
@@ -437,7 +445,39 @@ class Stack:
             if hasattr(entry.task, "activate"):
                 entry.task.activate()
         self._restore_f_max(c)
-        self._events.append(BlendEvent(float(t), f"contact {name!r} made"))
+        self._events.append(BlendEvent(float(t), f"contact {name!r} made", contact=name))
+
+    @contextlib.contextmanager
+    def contact_released(self, name: str) -> Iterator[None]:
+        """Context in which an active contact is released as before it was made.
+
+        Inside, :meth:`build` gives the hierarchy without the contact (its slot held at zero);
+        on exit the contact is active again with its tasks' state (e.g. a stabilisation
+        reference) as it was. The controller uses it to interpolate torques over
+        ``blend_time`` from the hierarchy without a contact just made to the one with it.
+
+        Raises:
+            UnknownName: No contact of that name.
+
+        """
+        c = self._contact(name)
+        if c.mode is not ContactMode.ACTIVE:
+            yield
+            return
+        saved = [(e.task, e.task.__dict__.get("active"), e.task.__dict__.get("reference"))
+                 for e in self._contact_tasks(name) if hasattr(e.task, "deactivate")]
+        c.mode = ContactMode.INACTIVE
+        for task, _, _ in saved:
+            task.deactivate()  # type: ignore[attr-defined]
+        try:
+            yield
+        finally:
+            c.mode = ContactMode.ACTIVE
+            for task, active, reference in saved:
+                if active is not None:
+                    task.active = active  # type: ignore[attr-defined]
+                if "reference" in task.__dict__:
+                    task.reference = reference  # type: ignore[attr-defined]
 
     def deactivate_contact(
         self, name: str, *, t: float = 0.0, unload_time: float | None = None

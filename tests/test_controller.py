@@ -208,6 +208,36 @@ def test_contact_unloading_and_release(backend):
     assert c.active_contacts == ("right",)
 
 
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_contact_made_is_blended_between_the_two_hierarchies(backend):
+    # Static state, left sole released: making it again starts from the torques of the
+    # hierarchy without it (continuous), ends on the one with it, and the torques in between
+    # are (1 - s) tau_without + s tau_with, flagged as strictness suspended, over 20 ms.
+    c, m, q = make(unload_time=0.0, blend_time=0.02, backend=backend)
+    state = RobotState(q, np.zeros(m.nv))
+    c.deactivate_contact("left", t=0.0, unload_time=0.0)
+    t = 0.0
+    for _ in range(30):  # past the release blend
+        t += DT
+        before = c.step(state, t)
+    assert not before.report.strictness_suspended and c.active_contacts == ("right",)
+    ref, mr, _ = make(backend=backend)  # the same stack with both contacts made throughout
+    ref_tau = ref.step(state, 0.0).tau
+    c.activate_contact("left", t=t + DT)
+    taus, flags = [], []
+    for _ in range(25):
+        t += DT
+        cmd = c.step(state, t)
+        taus.append(cmd.tau)
+        flags.append(cmd.report.strictness_suspended)
+    np.testing.assert_allclose(taus[0], before.tau, atol=1e-6)  # s = 0: no jump
+    assert flags[:20] == [True] * 20 and not any(flags[21:])
+    np.testing.assert_allclose(taus[-1], ref_tau, atol=1e-5)  # the hierarchy with the contact
+    s = 0.5  # min-jerk at half the blend time
+    np.testing.assert_allclose(taus[10], (1 - s) * before.tau + s * ref_tau, atol=1e-5)
+    assert np.abs(np.diff(taus, axis=0)).max() < 0.1 * np.abs(ref_tau - before.tau).max()
+
+
 def test_bad_arguments():
     m, q = sample_humanoid()
     with pytest.raises(InvalidInput, match="dt"):

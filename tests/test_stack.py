@@ -175,7 +175,16 @@ def test_contact_unloading_then_release(humanoid):
     assert [e.note for e in st.pop_events()] == ["contact 'left' released"]
     st.activate_contact("left", t=0.2)
     assert left.active and st.contact_mode("left") is ContactMode.ACTIVE
-    assert "made" in st.pop_events()[0].note
+    event = st.pop_events()[0]
+    assert "made" in event.note and event.contact == "left"
+    # The hierarchy before the contact was made: its slot held at zero, then restored.
+    with st.contact_released("left"):
+        assert not left.active and st.active_contacts == ("right",)
+        before = st.build(m, layout, 1e-3, 0.2, x)
+    assert left.active and st.contact_mode("left") is ContactMode.ACTIVE
+    np.testing.assert_allclose(before.rows["left"].A[:, layout.contact("left").slice], np.eye(6))
+    after = st.build(m, layout, 1e-3, 0.2, x)
+    assert np.abs(after.rows["left"].A[:, : m.nv]).max() > 0.0  # the contact condition again
     with pytest.raises(UnknownName):
         st.deactivate_contact("hand")
 
