@@ -112,15 +112,16 @@ def test_library_behavior_runs_without_falling(name: str) -> None:
 
 
 NO_FLIGHT = (
-    "paper-humanoid cannot take off in this behavior (measured, hqp run squat-jump --json and "
-    "--set push_acceleration=6/8): with the trunk upright and the centre of gravity over the "
-    "feet the squat is at most 4.6 cm deep (ankle dorsiflexion limit 0.35 rad, torso pitch "
-    "limit 0.44 rad; straight legs put the trunk at 1.002 m, standing 0.993 m), and the push "
-    "saturates the hip-pitch torques (160 N m): at 8 m/s^2 from its first millisecond, at "
-    "6 m/s^2 after 0.03 s, the centre of gravity then peaking at 0.41 m/s upwards (flight "
-    ">= 0.1 s needs >= 0.49 m/s at take-off); at the default 4 m/s^2 the hip task becomes "
-    "infeasible at t = 1.29 s, trunk about 0.98 m, below the take-off height 0.99 m, and the "
-    "behavior lands through its safety phase (flight_time_s 0.0)")
+    "paper-humanoid does not take off in this behavior (measured on 20b1d4f with "
+    "--set push_acceleration=4/6/8): with the trunk upright and the centre of gravity over "
+    "the feet the squat is at most 4.6 cm deep (ankle dorsiflexion limit 0.35 rad; the torso "
+    "pitch then sits at its -0.44 rad limit), straight legs put the trunk at 1.002 m; pushing "
+    "up, the hip task is in conflict within its level (trunk orientation, torso pitch at its "
+    "limit) from 0.03 s into the push and the centre of gravity rises at 0.31 m/s at most "
+    "(with the trunk task below, the torso-pitch torque reaches 0.97 of its limit: 0.29 m/s; "
+    "on 673a548 the hip-pitch torques saturated: 0.41 m/s), while 0.1 s of flight needs "
+    "0.49 m/s at take-off; the default run enters the safety phase at t = 1.24 s (trunk "
+    "0.956 m < take-off 0.99 m) and lands standing, flight_time_s 0.0")
 
 
 @pytest.mark.skip(reason=NO_FLIGHT)
@@ -135,9 +136,9 @@ def test_squat_jump_flies_and_lands_standing() -> None:
 
 def test_squat_jump_infeasible_push_enters_the_safety_phase_and_lands_standing() -> None:
     # A take-off height above what straight legs reach (1.2 m > 1.002 m): the hip task cannot
-    # be completed. Measured: it becomes infeasible 0.09 s into the push, when the hip-pitch
-    # torques saturate, before the knees reach their limit (see NO_FLIGHT); the seed's
-    # Figure 13 state machine is the same: safety phase, legs ready, land standing.
+    # be completed. Measured: it becomes infeasible about 0.04 s into the push, before the
+    # knees reach their limit (conflict with the trunk orientation, see NO_FLIGHT); the
+    # seed's Figure 13 state machine is the same: safety phase, legs ready, land standing.
     result = run_behavior("squat-jump", overrides={"takeoff_height": 1.2})
     check_upright(result, flight_allowed=True)
     assert "flight" not in result.phases
