@@ -339,3 +339,19 @@ def test_a_state_past_its_limit_is_driven_back_within_the_reserve(arm: RobotMode
     for name in ("braking", "reserve"):
         with pytest.raises(InvalidGain, match=name):
             JointLimits(**{name: 0.5 if name == "reserve" else 0.0})
+
+
+def test_return_from_past_a_limit_uses_the_velocity_time_constant(arm: RobotModel) -> None:
+    # 10 mrad past the lower limit, returning at 0.12 rad/s: with T_v = 20 ms the return bound
+    # is (v_r - v) / T_v (continuous in v), with T_v = dt it is dead-beat, clipped at 2 B.
+    B = 1.0
+    q, v = arm.neutral(), np.zeros(arm.nv)
+    q[1] = arm.q_lower[1] - 0.01
+    v[1] = 0.12
+    arm.update(q, v)
+    v_r = np.sqrt(2.0 * B * 0.01)  # toward the range
+    slow = JointLimits(qdd_max=50.0, braking=B, reserve=2.0, velocity_time=0.02)
+    lb, _ = slow.bounds(arm, DT)
+    np.testing.assert_allclose(lb[1], (v_r - 0.12) / 0.02, rtol=1e-9)  # 1.07 rad/s^2
+    lb, _ = JointLimits(qdd_max=50.0, braking=B, reserve=2.0).bounds(arm, DT)
+    np.testing.assert_allclose(lb[1], 2.0 * B)  # (v_r - v) / dt = 21 rad/s^2, clipped

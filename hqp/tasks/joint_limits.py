@@ -66,10 +66,15 @@ braked through the contacts.
 
 A state past a position limit (after a disturbance, or a conflict with a
 higher level) is driven back: the bound toward the violated limit becomes
-``(v_r - v) / dt`` with the return velocity ``v_r = -min(v_max, sqrt(2 A e))``
-(``e`` the excursion), clipped to ``[-A_r, A_r]`` (the one-step bound
-would ask for ``2 e / dt^2``, and the plain viability bound brakes away from
-the range when the joint is at rest outside it).
+``(v_r - v) / T_v`` with the return velocity ``v_r = -min(v_max, sqrt(2 A e))``
+(``e`` the excursion) and the time constant ``T_v`` of the velocity bound,
+clipped to ``[-A_r, A_r]`` (the one-step bound would ask for ``2 e / dt^2``,
+and the plain viability bound brakes away from the range when the joint is at
+rest outside it). With ``T_v = dt`` the return is dead-beat: a joint held on
+its limit by a higher level, whose realised acceleration differs from the
+commanded one, then sees its bound switch between ``-A_r`` and ``A_r`` from
+step to step (a torque chatter); a longer ``T_v`` makes it continuous in
+``v``.
 """
 
 from __future__ import annotations
@@ -224,7 +229,7 @@ def _upper_bounds(
     out = finite & (q > q_max)
     if np.any(out):
         v_ret = -np.minimum(v_max[out], np.sqrt(2.0 * B[out] * (q[out] - q_max[out])))
-        bound[out] = np.clip((v_ret - v[out]) / dt, -cap[out], cap[out])
+        bound[out] = np.clip((v_ret - v[out]) / max(dt, v_time), -cap[out], cap[out])
     return bound
 
 
