@@ -39,7 +39,7 @@ from hqp.tasks.dynamics import joint_torques
 if TYPE_CHECKING:
     from hqp.model import RobotModel, RobotState
     from hqp.robots import Robot
-    from hqp.solver import HierarchicalSolver, Solution
+    from hqp.solver import HierarchicalSolver, Level, Solution
     from hqp.stack import BuiltStack, Stack, TaskSpan
     from hqp.tasks.base import Category, Rows, Task
 
@@ -487,8 +487,14 @@ class WholeBodyController(Controller):
                 notes.append(f"{failure}; solved again with backend {solver.backend_name!r}")
                 logger.info("t=%.4f: %s; retrying with %s", t, failure, solver.backend_name)
             try:
+                # the stack builds float arrays of consistent shapes: only finiteness is
+                # left to check (one reduction per level), not the user-input validation
+                if not all(_finite_level(level) for level in built.levels):
+                    failure = "non-finite task rows"
+                    break
                 solution = solver.solve(
-                    built.levels, final_metric=self.final_metric, final_target=self.final_target
+                    built.levels, final_metric=self.final_metric,
+                    final_target=self.final_target, validate=False,
                 )
             except HQPError as exc:
                 failure = f"solve failed: {exc}"
@@ -946,3 +952,14 @@ def standing_controller(
     stack, contacts = standing_stack(robot, model, **gains)
     return WholeBodyController(model, contacts, stack, dt=dt, backend=backend,
                                algorithm=algorithm, diagnostics=diagnostics)
+
+
+def _finite_level(level: Level) -> bool:
+    """Whether a stack-built level's matrices and bounds are free of NaN (bounds may be inf)."""
+    for value in (level.A, level.b, level.C):
+        if value is not None and not np.isfinite(np.sum(value)):
+            return False
+    for value in (level.lower, level.upper):
+        if value is not None and np.isnan(value).any():
+            return False
+    return True

@@ -151,6 +151,16 @@ def test_safe_mode_when_the_solve_fails(failure, monkeypatch):
     assert np.linalg.norm(cmd.tau - good.tau) < np.linalg.norm(good.tau)  # same ballpark
 
 
+def test_non_finite_task_rows_give_the_safe_command():
+    # Stack-built levels skip the solver's input validation (validate=False); the controller
+    # still checks their finiteness, so a task whose goal went NaN never reaches the QP.
+    bad = JointAccelStandIn("bad", 10, np.nan)
+    c, m, q = make(extra=[(bad, Category.OPERATIONAL)])
+    cmd = c.step(RobotState(q, np.zeros(m.nv)), 0.0)
+    assert cmd.safe_mode and np.all(np.isfinite(cmd.tau))
+    assert any("non-finite task rows" in n for n in cmd.report.notes)
+
+
 @pytest.mark.parametrize("backend", BACKENDS)
 def test_added_task_is_ramped_in(backend):
     jumps = {}
