@@ -201,3 +201,15 @@ def test_contacts_are_unloaded_when_a_phase_releases_them(setup):
     assert behavior.phase is behavior.Phase.LIFT
     assert ("release", "right_foot", 0.502, 0.15) in ctrl.log
     assert "hip" not in ctrl.stack
+
+
+def test_behavior_controllers_hold_only_the_constraint_levels() -> None:
+    # The standing stack's own tasks (CoM, trunk, posture and the angular-momentum damping of
+    # its balance level) are removed: left in, the damping sat strictly above the walk's
+    # swing-foot tasks and cut its steps short (6 of 8 in tests/test_walk.py).
+    from hqp.behaviors.runner import build_controller
+    from hqp.robots import load
+
+    ctrl = build_controller(load("paper-humanoid"), "hqp")
+    names = {t.name for t in ctrl.stack.tasks}
+    assert "angular_momentum" not in names and "com" not in names, names

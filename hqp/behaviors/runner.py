@@ -93,6 +93,7 @@ def build_controller(
         UnknownName: Unknown controller.
 
     """
+    from hqp.tasks.centroidal import CentroidalMomentumTask
     from hqp.tasks.com import CoMTask
     from hqp.tasks.orientation import OrientationTask
     from hqp.tasks.posture import PostureTask
@@ -109,7 +110,9 @@ def build_controller(
 
         ctrl = standing_nullspace_controller(robot, diagnostics=diagnostics)
     for task in list(ctrl.stack.tasks):
-        if isinstance(task, (CoMTask, OrientationTask, PostureTask)):
+        # the standing tasks (the angular-momentum damping of the standing balance level
+        # included: left in, it sat strictly above every task of a behavior's lower levels)
+        if isinstance(task, (CoMTask, OrientationTask, PostureTask, CentroidalMomentumTask)):
             ctrl.stack.remove(task.name)
     ctrl.stack.pop_events()
     return ctrl
