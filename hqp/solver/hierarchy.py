@@ -268,6 +268,16 @@ def _mth_singular(s: np.ndarray, m: int, r: int, thr: float) -> float:
     return v if v > thr else 0.0
 
 
+def _inequality_offsets(all_levels: Sequence[tuple[CheckedLevel, Any]]) -> tuple[list[int], int]:
+    """Index of each level's first inequality row among all of the hierarchy's, and their count."""
+    offsets = []
+    total_in = 0
+    for lv, _kind in all_levels:
+        offsets.append(total_in)
+        total_in += lv.m_in
+    return offsets, total_in
+
+
 class HierarchicalSolver:
     """A persistent lexicographic solver (keep one per control loop).
 
@@ -487,11 +497,7 @@ class HierarchicalSolver:
         gls = np.zeros(0)  # their tolerance scales
         gus = np.zeros(0)
         gid = _NO_ROWS  # their index among all inequality rows of the hierarchy
-        total_in = 0
-        offsets = []
-        for lv, _kind in all_levels:
-            offsets.append(total_in)
-            total_in += lv.m_in
+        offsets, total_in = _inequality_offsets(all_levels)
         pending: list[tuple[CheckedLevel, Any, Any, Any]] = []
         times: list[float] = []
         qp_count = 0
@@ -690,11 +696,7 @@ class HierarchicalSolver:
         gls = np.zeros(0)  # their tolerance scales
         gus = np.zeros(0)
         gid = _NO_ROWS  # their index among all inequality rows of the hierarchy
-        total_in = 0
-        offsets = []
-        for lv, _kind in all_levels:
-            offsets.append(total_in)
-            total_in += lv.m_in
+        offsets, total_in = _inequality_offsets(all_levels)
         rank_tol = self.rank_tol
         times: list[float] = []
         qp_count = 0
