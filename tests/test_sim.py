@@ -20,6 +20,7 @@ from hqp.sim import (
 )
 from hqp.sim.simulator import SEAT_DEPTH
 from hqp.tasks.base import Category
+from hqp.tasks.pose import PoseTask
 from hqp.tasks.position import PositionTask
 
 PAPER = "paper-humanoid"
@@ -222,23 +223,8 @@ def test_unreachable_hand_goal_never_drives_a_joint_past_its_limit():
     assert "conflict" in log.status["hand"][-100:]
 
 
-@pytest.mark.slow
-@pytest.mark.xfail(
-    strict=False,
-    reason="open defect (issue 4): largest per-step torque jump 30.0 N m against the stated "
-    "10 N m, at the CoM shift (0.4-0.8 s); add hand 0.09, remove hand 0.17, unload 0.81, "
-    "re-contact 4.1 N m (blended between the hierarchies without and with the contact, and "
-    "a joint past its limit returns with the velocity bound's time constant; 12.6 before). "
-    "The shift asks 5.5 cm in 0.4 s (min-jerk peak 2.0 m/s^2, a centre of pressure "
-    "19 cm beside the CoM where the support polygon reaches 12 cm): the balance level is in "
-    "conflict and the arms' acceleration bounds (+-50 rad/s^2) and the right elbow's bound at "
-    "its position limit switch from step to step, which changes the optimal set left to the "
-    "trunk and posture levels (capping the CoM reference at 1.0 m/s^2 gives 9.0 N m but 6.7 N "
-    "on the released foot, at 1.3 m/s^2 19 N m: not a robust fix). The same shift over 0.8 s "
-    "gives 0.2 N m, but then the released left foot still bears 35 N (the unloading "
-    "assertion fails) with this timeline.",
-)
-def test_adding_removing_a_task_and_a_contact_keeps_torques_continuous():
+def _weight_shift_setup():
+    """Standing controller, a hand task to add, the CoM goal over the right foot."""
     r = robots.load(PAPER)
     c = standing_controller(r, diagnostics="residuals")
     model = c.model
@@ -248,26 +234,86 @@ def test_adding_removing_a_task_and_a_contact_keeps_torques_continuous():
     right = model.frame_placement(r.feet[1]).translation
     com = c.task("com")
 
-    def shift(sim, ctrl, t):
-        goal = np.array([right[0], right[1] * 0.7, com.goal_at(t).position[2]])
-        com.move_to(ctrl.model, goal, 0.4, t)
+    def shift(duration):
+        def action(sim, ctrl, t):
+            goal = np.array([right[0], right[1] * 0.7, com.goal_at(t).position[2]])
+            com.move_to(ctrl.model, goal, duration, t)
+        return action
+
+    return r, c, hand, shift
+
+
+def _jumps(log, bounds):
+    """Largest per-step torque change [N m] in each interval between consecutive bounds."""
+    jumps = np.abs(np.diff(log.tau, axis=0)).max(axis=1)
+    t = log.t[1:]
+    return [float(jumps[(t >= a) & (t < b)].max()) for a, b in zip(bounds[:-1], bounds[1:])]
+
+
+@pytest.mark.slow
+def test_adding_removing_a_task_and_a_contact_keeps_torques_continuous():
+    # A task added then removed; the weight shifted onto the right foot (5.5 cm in 0.8 s:
+    # a centre of pressure the support allows); the left foot unloaded (0.2 s), released,
+    # lifted 5 mm and put down by a foot pose task added when unloading starts, and the
+    # contact made again. Measured per-step jumps [N m] (1 ms steps): add hand 0.09, remove
+    # hand 0.17, shift 0.41, unload 0.54, lift/lower 0.14, re-contact 1.74; the released foot
+    # bears at most 0.4 N.
+    r, c, hand, shift = _weight_shift_setup()
+    model = c.model
+    left0 = model.frame_placement(r.feet[0]).copy()
+    lifted = left0.copy()
+    lifted.translation = left0.translation + np.array([0.0, 0.0, 0.005])
+    foot = PoseTask(model, r.feet[0], name="left_foot_pose", kp=100.0)
+
+    def unload(sim, ctrl, t):
+        foot.set_goal(ctrl.model.frame_placement(r.feet[0]))
+        ctrl.add_task(foot, Category.OPERATIONAL, t=t)
+        ctrl.deactivate_contact(r.feet[0], t=t, unload_time=0.2)
+
+    def contact_again(sim, ctrl, t):
+        ctrl.activate_contact(r.feet[0], t=t)
+        ctrl.remove_task("left_foot_pose", t=t)
 
     events = [
         Event(0.05, lambda s, k, t: k.add_task(hand, Category.OPERATIONAL, t=t), "add hand"),
         Event(0.35, lambda s, k, t: k.remove_task("hand", t=t), "remove hand"),
-        Event(0.40, shift, "CoM over the right foot"),
-        Event(0.85, lambda s, k, t: k.deactivate_contact(r.feet[0], t=t, unload_time=0.2),
-              "unload left foot"),
-        Event(1.15, lambda s, k, t: k.activate_contact(r.feet[0], t=t), "left foot again"),
+        Event(0.40, shift(0.8), "CoM over the right foot"),
+        Event(1.20, unload, "unload left foot"),
+        Event(1.45, lambda s, k, t: foot.move_to(k.model, lifted, 0.2, t), "lift"),
+        Event(1.70, lambda s, k, t: foot.move_to(k.model, left0, 0.2, t), "put down"),
+        Event(1.95, contact_again, "left foot again"),
     ]
-    log = simulate(r, c, 1.3, events)
+    log = simulate(r, c, 2.1, events)
     assert [name for _, name in log.events] == [e.name for e in events]
     assert not log.fell and log.clip_count == 0 and not log.safe_mode.any()
-    assert log.strictness_suspended.any()  # the removal and the new contact were blended
-    jumps = np.abs(np.diff(log.tau, axis=0)).max(axis=1)
-    assert jumps.max() < 10.0, jumps.max()  # stated bound: 10 N m per 1 ms step
-    unloaded = (log.t > 1.06) & (log.t < 1.15)
-    assert np.all(log.normal_force[unloaded, 0] < 5.0)
+    assert log.strictness_suspended.any()  # the removals and the new contact were blended
+    jumps = _jumps(log, [0.0, 0.05, 0.35, 0.40, 1.20, 1.45, 1.95, 2.1])
+    assert max(jumps) < 5.0, jumps  # stated bound: 5 N m per 1 ms step
+    released = (log.t > 1.41) & (log.t < 1.95)
+    assert np.all(log.normal_force[released, 0] < 1.0)  # [N] the left foot is off the floor
+    assert np.all(log.normal_force[log.t > 2.05, 0] > 100.0)  # and bears weight again
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(
+    strict=True,
+    reason="open defect (issue 4): while the balance level is in conflict the torques jump "
+    "by up to 45 N m per step (measured on this test; 30 N m with a hand task added too). "
+    "The shift asks 5.5 cm in 0.4 s (min-jerk peak 2.0 m/s^2, a "
+    "centre of pressure 19 cm beside the CoM where the support polygon reaches 12 cm); the "
+    "arms' acceleration bounds (+-50 rad/s^2) and the right elbow's bound at its position "
+    "limit switch from step to step, which changes the optimal set left to the trunk and "
+    "posture levels (capping the CoM reference at 1.0 m/s^2 gives 9.0 N m, at 1.3 m/s^2 "
+    "19 N m: not a robust fix). The same kind of jump (30 N m) appears when an exact task "
+    "drives a limb near a singularity: lifting the released, nearly straight left leg's foot "
+    "2 cm in 0.15 s asks 48 rad/s^2 at its ankle (the acceleration bound).",
+)
+def test_torques_stay_continuous_while_the_balance_level_is_in_conflict():
+    r, c, hand, shift = _weight_shift_setup()
+    log = simulate(r, c, 0.9, [Event(0.10, shift(0.4), "CoM over the right foot, too fast")])
+    assert not log.fell and log.clip_count == 0 and not log.safe_mode.any()
+    assert "conflict" in log.status["com"]  # the shift is infeasible: balance in conflict
+    assert max(_jumps(log, [0.0, 0.9])) < 5.0
 
 
 @pytest.mark.slow

@@ -272,6 +272,7 @@ def run_behavior(
     pelvis_min = np.inf
     x_start = model.com[0]
     safe_steps = 0
+    tau_prev, tau_jump, tau_jump_t = None, 0.0, None
     step_times = []
     renderer = _Renderer(sim, video) if video is not None else None
     t = 0.0
@@ -286,6 +287,11 @@ def run_behavior(
             safe_steps += 1
         ratio = float(np.max(np.abs(cmd.tau) / np.maximum(model.tau_max, 1e-9)))
         torque_ratio = max(torque_ratio, ratio)
+        if tau_prev is not None:
+            jump = float(np.max(np.abs(cmd.tau - tau_prev)))
+            if jump > tau_jump:
+                tau_jump, tau_jump_t = jump, t
+        tau_prev = cmd.tau
         if any("clipped" in note for note in cmd.report.notes):
             clipped += 1
         sim.step(cmd.tau)
@@ -326,6 +332,8 @@ def run_behavior(
     steps = sorted((s for tr in trackers.values() for s in tr.steps), key=lambda s: s["t_land"])
     metrics: dict[str, Any] = {
         "max_torque_ratio": round(torque_ratio, 4),
+        "max_torque_jump_nm": round(tau_jump, 3),
+        "max_torque_jump_t": None if tau_jump_t is None else round(tau_jump_t, 3),
         "controller_clipped_steps": clipped,
         "sim_clipped_torques": int(sim.clip_count),
         "safe_mode_steps": safe_steps,
