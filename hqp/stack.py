@@ -680,7 +680,52 @@ def _ramp_goal(task: Task, model: RobotModel, duration: float, t: float) -> None
         goal = goal_at(t).position
     except HQPError:
         return  # no goal set: nothing to ramp
-    move_to(model, goal, duration, t)
+    move_to(model, goal, max(duration, _saturation_time(task, model, t)), t)
+
+
+MIN_JERK_PEAK_VELOCITY = 1.875
+"""Peak velocity of a minimum-jerk move of length ``d`` over ``T``, in units of ``d / T``."""
+MIN_JERK_PEAK_ACCELERATION = 10.0 / math.sqrt(3.0)
+"""Peak acceleration of a minimum-jerk move, in units of ``d / T^2`` (5.77)."""
+
+
+def _saturation_time(task: Task, model: RobotModel, t: float) -> float:
+    """Shortest minimum-jerk duration [s] from the task's value to its goal within its saturations.
+
+    A goal ramp's feed-forward is not limited by the task's PD law (seed 003 eq. 27-28 saturates
+    the feedback only), so a far goal ramped over a short ``ramp_time`` would ask for more than
+    the task itself would. The ramp is lengthened so that its peak velocity ``1.875 d / T`` and
+    peak acceleration ``5.77 d / T^2`` stay within what the PD law asks for the same error ``d``
+    (the norm of the task's error; a pose task's translation and rotation separately): the
+    corrective velocity ``min(max_velocity, kp d / kv)`` and the feedback acceleration
+    ``min(max_acceleration, kp d)``. 0 for tasks without a PD law or error.
+    """
+    reference = getattr(task, "reference", None)
+    kinematics = getattr(task, "kinematics", None)
+    if reference is None or kinematics is None:
+        return 0.0
+    try:
+        error = np.asarray(kinematics(model, t).error, dtype=float)
+    except HQPError:
+        return 0.0
+    parts = [(error, reference)]
+    angular = getattr(task, "angular_reference", None)
+    if angular is not None and error.size == 6:
+        parts = [(error[:3], reference), (error[3:], angular)]
+    duration = 0.0
+    for part, ref in parts:
+        d = float(np.linalg.norm(part))
+        if d == 0.0:
+            continue
+        kp, kv = float(getattr(ref, "kp", 0.0)), float(getattr(ref, "kv", 0.0))
+        vmax = min(float(getattr(ref, "max_velocity", math.inf)),
+                   kp * d / kv if kv > 0.0 else math.inf)
+        amax = min(float(getattr(ref, "max_acceleration", math.inf)), kp * d)
+        if math.isfinite(vmax) and vmax > 0.0:
+            duration = max(duration, MIN_JERK_PEAK_VELOCITY * d / vmax)
+        if math.isfinite(amax) and amax > 0.0:
+            duration = max(duration, math.sqrt(MIN_JERK_PEAK_ACCELERATION * d / amax))
+    return duration
 
 
 def _check_columns(rows: Rows, n: int, where: str) -> None:

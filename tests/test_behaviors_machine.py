@@ -213,3 +213,32 @@ def test_behavior_controllers_hold_only_the_constraint_levels() -> None:
     ctrl = build_controller(load("paper-humanoid"), "hqp")
     names = {t.name for t in ctrl.stack.tasks}
     assert "angular_momentum" not in names and "com" not in names, names
+
+
+def test_an_unchanged_goal_is_not_set_again_so_the_goal_ramp_of_a_new_task_survives(setup):
+    # A task added at a phase switch starts at its current value and ramps to its goal (see
+    # hqp.stack); setting the same goal again at the next steps would replace that ramp by a
+    # step (measured before the fix on `reach`: a 12.9 N m torque jump 2 ms after the switch).
+    behavior, ctrl, state = setup
+    behavior.start(state, 0.0)
+    behavior.update(state, 0.5, None)  # -> reach: hand added, goal set
+    hand = behavior.tasks["hand"]
+    ctrl.stack.build(ctrl.model, _layout(ctrl), 1e-3, 0.5, None)  # the stack starts the ramp
+    ramp = hand.trajectory
+    assert ramp is not None
+    behavior.update(state, 0.501, None)
+    behavior.update(state, 0.502, None)
+    assert hand.trajectory is ramp
+    start = ctrl.model.frame_placement("right_hand").translation
+    np.testing.assert_allclose(hand.goal_at(0.5).position, start, atol=1e-12)
+    # a changed goal (a streamed input) is set at once
+    behavior.inputs._add({"t": 0.6, "goal": [0.35, -0.2, 1.0]}, "test")
+    behavior.update(state, 0.6, None)
+    assert hand.trajectory is None
+    np.testing.assert_allclose(hand.goal_at(0.6).position, [0.35, -0.2, 1.0])
+
+
+def _layout(ctrl):
+    from hqp.layout import Layout
+
+    return Layout.build(ctrl.model.nv)

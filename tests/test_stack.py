@@ -194,3 +194,41 @@ def test_layout_contact_must_be_declared(humanoid):
     layout = Layout.build(m.nv, [("hand", "right_sole", ContactType.POINT)])
     with pytest.raises(HQPError, match="not declared"):
         Stack().build(m, layout, 1e-3, 0.0)
+
+
+def test_goal_ramp_of_an_added_task_stays_within_its_pd_law():
+    # An added task's goal starts at its current value and follows a minimum-jerk move; the
+    # move takes at least as long as the task's own saturated PD law would (peak velocity
+    # 1.875 d / T <= min(max_velocity, kp d / kv), peak acceleration 5.77 d / T^2 <=
+    # min(max_acceleration, kp d)), not just the stack's ramp_time (0.1 s here).
+    from hqp import robots
+    from hqp.tasks.orientation import OrientationTask
+    from hqp.tasks.position import PositionTask
+
+    r = robots.load("paper-humanoid")
+    m = r.model()
+    m.update(r.q_standing, np.zeros(m.nv))
+    layout = Layout.build(m.nv)
+    p0 = m.frame_placement(r.hands[1]).translation.copy()
+    hand = PositionTask(m, r.hands[1], name="hand", kp=100.0, max_velocity=0.5,
+                        max_acceleration=3.0)
+    hand.set_goal(p0 + np.array([0.4, 0.0, 0.0]))
+    trunk = OrientationTask(m, "trunk", kp=100.0)  # critical damping kv = 20, no saturation
+    R0 = m.frame_placement("trunk").rotation.copy()
+    trunk.set_goal(R0 @ np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]]))
+    st = Stack(ramp_time=0.1)
+    st.add(hand, t=1.0)
+    st.add(trunk, t=1.0)
+    st.build(m, layout, 1e-3, 1.0, None)
+    ts = 1.0 + np.linspace(0.0, 2.0, 2001)
+    samples = [hand.goal_at(t) for t in ts]
+    np.testing.assert_allclose(samples[0].position, p0, atol=1e-12)
+    speed = np.array([np.linalg.norm(s.velocity) for s in samples])
+    accel = np.array([np.linalg.norm(s.acceleration) for s in samples])
+    assert speed.max() <= 0.5 + 1e-9 and speed.max() > 0.49  # velocity-limited: T = 1.5 s
+    assert accel.max() <= 3.0 + 1e-9
+    np.testing.assert_allclose(hand.goal_at(2.5).position, p0 + [0.4, 0.0, 0.0], atol=1e-12)
+    assert np.linalg.norm(hand.goal_at(2.49).position - p0 - [0.4, 0.0, 0.0]) > 0.0
+    # unsaturated: T = max(1.875 kv / kp, sqrt(5.77 / kp)) = 0.375 s for a 90-degree turn
+    w = [np.linalg.norm(trunk.goal_at(t).velocity) for t in ts]
+    assert max(w) == pytest.approx(1.875 * (np.pi / 2) / 0.375, rel=1e-3)

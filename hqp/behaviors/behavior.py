@@ -135,6 +135,7 @@ class Behavior:
         self.com0 = np.zeros(3)
         self.feet_center = np.zeros(3)
         self._initial: dict[str, Any] = {}
+        self._goals_set: dict[str, dict[str, Any]] = {}
         self._levels: dict[str, int] = {}
         self._flags: dict[str, bool] = {}
         self._bad_steps: dict[str, int] = {}
@@ -359,7 +360,27 @@ class Behavior:
                     raise BehaviorFileError(
                         f"{self.spec.path}: goal {gname} of task {ts.name!r} in phase "
                         f"{phase.name!r}: {exc}") from None
+            if _same_values(values, self._goals_set.get(ts.name)):
+                # unchanged: setting it again would replace the trajectory of a task that is
+                # ramping in (its goal starts at its current value, see hqp.stack) by a step
+                continue
             self.factory.set_goals(self.tasks[ts.name], ts, values)
+            self._goals_set[ts.name] = values
+
+
+def _same_values(values: dict[str, Any], previous: dict[str, Any] | None) -> bool:
+    """Whether two goal dictionaries hold the same names and equal values."""
+    if previous is None or values.keys() != previous.keys():
+        return False
+    for name, value in values.items():
+        old = previous[name]
+        try:
+            if not np.array_equal(np.asarray(value, dtype=float), np.asarray(old, dtype=float)):
+                return False
+        except (TypeError, ValueError):
+            if value != old:
+                return False
+    return True
 
 
 class _LazyNamespace(Namespace):
