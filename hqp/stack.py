@@ -705,9 +705,12 @@ def _saturation_time(task: Task, model: RobotModel, t: float) -> float:
     if reference is None or kinematics is None:
         return 0.0
     try:
-        error = np.asarray(kinematics(model, t).error, dtype=float)
+        error = getattr(kinematics(model, t), "error", None)
     except HQPError:
         return 0.0
+    if error is None:
+        return 0.0
+    error = np.asarray(error, dtype=float)
     parts = [(error, reference)]
     angular = getattr(task, "angular_reference", None)
     if angular is not None and error.size == 6:

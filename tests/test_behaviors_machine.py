@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hqp import robots
+from hqp import HQPError, robots
 from hqp.behaviors import Behavior, load_behavior
 from hqp.behaviors.factory import TaskFactory
 from hqp.controller import Controller, Feasibility, FeasibilityReport, TaskStatus
@@ -242,3 +242,47 @@ def _layout(ctrl):
     from hqp.layout import Layout
 
     return Layout.build(ctrl.model.nv)
+
+
+def test_momentum_and_forces_tasks_build_from_a_file(tmp_path: Path) -> None:
+    from hqp.tasks.centroidal import CentroidalMomentumTask
+    from hqp.tasks.effort import ForceRegularization
+
+    robot = robots.load("paper-humanoid")
+    model = robot.model()
+    text = TEXT.replace("[tasks.posture]", """[tasks.spin]
+type = "momentum"
+part = "angular"
+kv = 5.0
+goal = [0.0, 0.0, 0.0]
+
+[tasks.share]
+type = "forces"
+weight = 100.0
+
+[tasks.posture]""")
+    hold = 'tasks = ["balance", "posture"]\ncontacts = ["left_foot", "right_foot"]\ntransitions'
+    text = text.replace(hold, hold.replace('"balance", ', '"balance", "spin", "share", '))
+    path = tmp_path / "m.toml"
+    path.write_text(text)
+    spec = load_behavior(path, frames=model.frame_names, joints=model.joint_names,
+                         contacts=["left_foot", "right_foot"])
+    factory = TaskFactory(model, {"left_foot": "left_foot", "right_foot": "right_foot"},
+                          robot.q_standing)
+    spin = factory.build(spec.tasks["spin"])
+    share = factory.build(spec.tasks["share"])
+    assert isinstance(spin, CentroidalMomentumTask) and spin.reference.kv == 5.0
+    assert isinstance(share, ForceRegularization) and share.weight == 100.0
+    factory.set_goals(spin, spec.tasks["spin"], {"goal": np.zeros(3)})
+    ctrl = StubController(model)
+    behavior = Behavior(spec, ctrl, factory, standing=robot.q_standing)
+    state = RobotState(q=robot.q_standing.copy(), v=np.zeros(model.nv), t=0.0,
+                       contacts={"left_foot": True, "right_foot": True})
+    behavior.start(state, 0.0)
+    assert {"spin", "share"} <= {task.name for task in ctrl.stack.tasks}
+    bad = path.with_name("bad.toml")
+    bad.write_text(text.replace('part = "angular"', 'part = "sideways"'))
+    spec = load_behavior(bad, frames=model.frame_names, joints=model.joint_names,
+                         contacts=["left_foot", "right_foot"])
+    with pytest.raises(HQPError, match="momentum part must be"):
+        factory.build(spec.tasks["spin"])

@@ -238,3 +238,30 @@ def test_force_primitives_bad_input(robot: RobotModel, layout: Layout) -> None:
         HybridTask(robot, RIGHT, "right", force_axes=("fw",))
     with pytest.raises(HQPError, match="HybridTask 'hybrid_.*force"):
         HybridTask(robot, RIGHT, "right").set_force([1.0, 2.0])
+
+
+def test_force_regularization_rows_are_the_wrenches_over_the_weight(
+    robot: RobotModel, layout: Layout
+) -> None:
+    from hqp.tasks.effort import ForceRegularization
+
+    task = ForceRegularization(robot, weight=50.0)
+    assert task.category is Category.POSTURE and task.weight == 50.0
+    rows = task.rows(robot, layout, 1e-3, 0.0)
+    rng = np.random.default_rng(3)
+    x = rng.normal(size=layout.n)
+    mg = robot.mass * 9.81
+    f = np.concatenate([x[layout.contact(c).start:layout.contact(c).start + 6]
+                        for c in ("left", "right")])
+    np.testing.assert_allclose(rows.A @ x - rows.b, f / mg, rtol=1e-3, atol=1e-15)
+    assert not rows.A[:, : robot.nv].any()
+    # the lexicographic optimum with it below a net-force row shares the load evenly
+    from hqp.solver import Level, solve
+
+    G = np.zeros((6, layout.n))
+    for c in ("left", "right"):
+        G[:, layout.contact(c).start:layout.contact(c).start + 6] = np.eye(6)
+    w = np.array([0.0, 0.0, mg, 0.0, 0.0, 0.0])
+    sol = solve([Level(A=G, b=w), Level(A=rows.A, b=rows.b)], backend="quadprog")
+    left = sol.x[layout.contact("left").start:layout.contact("left").start + 6]
+    np.testing.assert_allclose(left, 0.5 * w, atol=1e-6)

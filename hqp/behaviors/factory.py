@@ -188,12 +188,36 @@ class TaskFactory:
 
         return EffortTask(self.model, name=spec.name, weight=spec.weight)
 
+    def _build_momentum(self, spec: TaskSpec, gains: dict[str, float]) -> Task:
+        from hqp.tasks.centroidal import CentroidalMomentumTask
+
+        part = spec.params.get("part", "angular")
+        if part not in ("angular", "linear", "all"):
+            raise BehaviorFileError(f"task {spec.name!r}: momentum part must be 'angular', "
+                                    f"'linear' or 'all', got {part!r}")
+        kwargs: dict[str, float] = {}
+        if "kv" in gains:
+            kwargs["gain"] = gains["kv"]
+        if "max_acceleration" in gains:
+            kwargs["max_rate"] = gains["max_acceleration"]
+        return CentroidalMomentumTask(self.model, part, name=spec.name, weight=spec.weight,
+                                      **kwargs)
+
+    def _build_forces(self, spec: TaskSpec, gains: dict[str, float]) -> Task:
+        from hqp.tasks.effort import ForceRegularization
+
+        return ForceRegularization(self.model, name=spec.name, weight=spec.weight)
+
     # goal setters -----------------------------------------------------------------------------
 
     def _goal_vector(self, task: Task, spec: TaskSpec, values: Mapping[str, Any]) -> None:
         if "goal" in values:
             task.set_goal(values["goal"], values.get("goal_velocity"),  # type: ignore[attr-defined]
                           values.get("goal_acceleration"))
+
+    def _goal_momentum(self, task: Task, spec: TaskSpec, values: Mapping[str, Any]) -> None:
+        if "goal" in values:
+            task.set_goal(values["goal"])  # type: ignore[attr-defined]
 
     def _goal_orientation(self, task: Task, spec: TaskSpec, values: Mapping[str, Any]) -> None:
         if "goal" in values:

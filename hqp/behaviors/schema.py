@@ -68,8 +68,9 @@ SCHEMAS: dict[str, TaskSchema] = {
         ),
         TaskSchema(
             "momentum", Category.BALANCE, goals=("goal",),
-            params={**GAINS, "part": str},
-            description="centroidal momentum (linear, angular or both)",
+            params={"part": str, "kv": (int, float), "max_acceleration": (int, float)},
+            description="centroidal momentum (part 'angular' (default), 'linear' or 'all'; "
+            "goal default zero: damping with gain kv [1/s], rate saturated at max_acceleration)",
         ),
         TaskSchema(
             "position", Category.OPERATIONAL, frames=("frame",), goals=_TRACK,
@@ -106,6 +107,11 @@ SCHEMAS: dict[str, TaskSchema] = {
             "effort", Category.POSTURE,
             params={},
             description="minimise joint torques",
+        ),
+        TaskSchema(
+            "forces", Category.POSTURE,
+            params={},
+            description="minimise the contact forces (how the feet share the load)",
         ),
         TaskSchema(
             "obstacle", Category.COLLISION, frames=("frame",),
