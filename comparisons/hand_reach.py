@@ -2,9 +2,9 @@
 
 The experiment of the hierarchy paper's Figures 3-5 on ``paper-humanoid``
 (24 DoF, 1.65 m, 71 kg), standing on both feet. The right hand is commanded
-to a fixed target low in front of and beside the robot, far enough that the
-hip, knee-flexion and right-elbow limits are reached before the hand gets
-there: the target is unreachable because of joint limits. Tasks (eq. 24-26),
+to a fixed target low in front of and beside the robot, out of reach because
+of joint limits (the paper: hip, knee-flexion and right-elbow limits; here the
+hip-flexion and right-elbow limits, not the knee's: see below). Tasks (eq. 24-26),
 each with the PD law with velocity saturation of eq. 27-28:
 
 - joint limits (``V_JLC``): HQP: the viable position/velocity bounds at the
@@ -21,17 +21,44 @@ Hierarchies:
   level; posture;
 - ``cog-first`` (eq. 31): joint limits; centre of gravity; hand; posture.
 
-Duration: 2 s (the paper's plots run 3 s). By 2 s the hip-flexion and elbow
-limits are reached; the knee flexion is not (this robot bends at the hip
-rather than squatting: its ankle dorsiflexion stops at 0.35 rad), and the hand
-is still closing in (about 0.1-0.5 m/s). Beyond 2 s the HQP runs are limited by
-torque, not by joint limits: the torso-pitch motor (78 N m) is saturated from
-about 1 s holding the bent trunk, and once the hip reaches its limit the
-torque-limit level (above the tasks) wins: at 3 s the centre of gravity is
-27 mm off in ``cog-first`` and the hand is pulled back to 0.9 m from its
-target, with no fall and no joint past its limit by more than 0.02 rad
-(``hqp compare hand-reach --controllers hqp --duration 3``). The paper's
-law-based simulation had no torque limits.
+Duration: 2 s (the paper's plots run 3 s). Measured with
+``hqp compare hand-reach --controllers hqp --json`` (scenario metrics
+``<joint>_limit_gap_rad``, ``<joint>_limit_reached_s``, ``hand_speed_final_mps``
+of :func:`limit_metrics`): the right elbow reaches its extension limit (0 rad)
+at 0.11 s in both hierarchies (the arm straightens towards the target); the
+right hip flexion reaches -2.09 rad at 1.80 s in ``cog-first`` (``shared``: 0.13
+rad short at 2 s, reached at 2.3 s); the hand is still closing in (0.18 m/s).
+The knee-flexion limit is not reached (the right knee bends from -0.30 to
+-0.63 rad by 2 s; limit -1.50 rad), and no target makes it:
+
+- This robot reaches low with its trunk: hip flexion to 2.09 rad plus torso
+  pitch to 1.40 rad take the hand below the floor with the knees at about
+  -1.0 rad. A static reach optimisation (both feet fixed, centre of gravity
+  over the feet, joint limits; for a few targets also torque limits with
+  optimal contact wrenches) over about 280 targets and 150 reach directions
+  never puts the right knee below -1.14 rad: once the hip flexion (-2.09)
+  and the ankle dorsiflexion (-0.35) are at their limits, more knee flexion
+  turns the thigh, hence the trunk, upright and raises the shoulder, so the hand moves away.
+  The deepest balanced squat (knee at -1.5, hip at -2.09, both ankles at
+  -0.35, base 0.64 m) exists, but with the knee held there the hand gets
+  3-5 cm less close to any target tried than with the knee free.
+- In MuJoCo the legs follow the same path: with the hand target
+  ``(0.9, -0.5, 0.2)`` and a slow symmetry posture (``posture_gains`` (1, 2)) the
+  hand comes to rest 24.5 cm short at 2.5 s in ``cog-first`` (cog max 0.95 mm)
+  with the knees at -1.0/-1.1 rad and the right ankle at its dorsiflexion limit
+  (the leg limit that stops the squat), but joints pass their limits by up to
+  3 mm (``shared``: 13 mm), so it is not the default.
+
+Beyond about 2 s the HQP runs with the default posture gains are erratic: the
+symmetry posture (eq. 26, ``kp`` 25, ``kv`` 10) swings the arms towards their
+mid-range at the joint velocity bounds, the torso-pitch motor (78 N m) is
+saturated from about 1 s holding the bent trunk, and once the right elbow is
+straight and the target out of reach the hand level's near-singular least
+squares drives the shoulder at its velocity bounds: the torso yaw hits its
+limit and the hand swings away (at 3 s the centre of gravity is 27 mm off in
+``cog-first`` and the hand 0.9 m from its target, no fall, joints at most
+0.02 rad past their limits; ``hqp compare hand-reach --controllers hqp
+--duration 3``). The paper's law-based simulation had no torque limits.
 
 Joint limits of the HQP stack use :data:`comparisons.common.JOINT_LIMIT_MARGIN`
 and :data:`comparisons.common.JOINT_VELOCITY_SCALE` (see there).
@@ -82,8 +109,48 @@ class HandReachParameters:
     zone: float = 0.1
 
 
-PLOTTED_JOINTS = ("right_elbow", "right_knee", "right_hip_pitch")
-"""Joints drawn against their limits (the paper's Figures 4c-d, plus the hip)."""
+PLOTTED_JOINTS = ("right_elbow", "right_knee", "right_hip_pitch", "right_ankle_pitch")
+"""Joints drawn against their limits (the paper's Figures 4c-d, plus the hip and the ankle)."""
+
+LIMIT_TOLERANCE = 0.02
+"""A joint has reached a position limit when it comes within this distance of it [rad]."""
+
+HAND_REST_WINDOW = 0.1
+"""Window at the end of a run over which the hand's mean speed is measured [s]."""
+
+
+def limit_metrics(trace: Trace) -> dict[str, float | None]:
+    """Closest approach of each plotted joint to its limits, when it reached one, hand speed.
+
+    Scenario metrics added to the contract's row (extra fields are allowed there):
+
+    - ``<joint>_limit_gap_rad``: ``min_t min(q - q_lower, q_upper - q)`` over the run
+      (negative: past a limit) [rad];
+    - ``<joint>_limit_reached_s``: first time the joint came within
+      :data:`LIMIT_TOLERANCE` of a limit (``None``: never) [s];
+    - ``hand_speed_final_mps``: mean speed of the hand over the last
+      :data:`HAND_REST_WINDOW` [m/s] (``None`` without a hand).
+
+    """
+    out: dict[str, float | None] = {}
+    for joint in PLOTTED_JOINTS:
+        if joint not in trace.joint_names:
+            continue
+        i = trace.joint_names.index(joint)
+        q = trace.q[:, i]
+        gap = np.minimum(q - trace.q_lower[i], trace.q_upper[i] - q)
+        near = np.flatnonzero(gap <= LIMIT_TOLERANCE)
+        out[f"{joint}_limit_gap_rad"] = float(gap.min())
+        out[f"{joint}_limit_reached_s"] = float(trace.t[near[0]]) if near.size else None
+    out["hand_speed_final_mps"] = None
+    if trace.hand is not None and trace.t.size > 1:
+        last = trace.t >= trace.t[-1] - HAND_REST_WINDOW
+        last[-2:] = True
+        idx = np.flatnonzero(last)
+        span = trace.t[idx[-1]] - trace.t[idx[0]]
+        path = np.linalg.norm(np.diff(trace.hand[idx], axis=0), axis=1).sum()
+        out["hand_speed_final_mps"] = float(path / span) if span > 0.0 else 0.0
+    return out
 
 
 class HandReach(Scenario):
@@ -137,7 +204,7 @@ class HandReach(Scenario):
                                    zone=self.parameters.zone)
         trace = trace_from_log(rob, log, goals["cog"], hand_frame=rob.hands[1],
                                hand_goal=goals["hand"])
-        return RunResult(spec, {}, trace, self.panels(trace), note)
+        return RunResult(spec, limit_metrics(trace), trace, self.panels(trace), note)
 
     # -- figure -----------------------------------------------------------------------------
 
@@ -156,7 +223,8 @@ class HandReach(Scenario):
                               Line("Hand Position", trace.hand[:, 2]))))
         labels = {"right_elbow": ("Right Elbow Angle", "Elbow"),
                   "right_knee": ("Right Knee Flexion", "Knee Flexion"),
-                  "right_hip_pitch": ("Right Hip Flexion", "Hip Flexion")}
+                  "right_hip_pitch": ("Right Hip Flexion", "Hip Flexion"),
+                  "right_ankle_pitch": ("Right Ankle Pitch (dorsiflexion < 0)", "Ankle Pitch")}
         for joint in PLOTTED_JOINTS:
             if joint not in trace.joint_names:
                 continue
