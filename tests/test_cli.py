@@ -47,3 +47,17 @@ def test_subcommands_are_registered():
     parser = build_parser()
     sub = next(a for a in parser._actions if a.dest == "command")
     assert "bench" in sub.choices
+
+
+def test_run_with_a_backend_reports_it_and_the_torque_jump(capfd):
+    # (capfd: `hqp run` keeps file descriptor 1 for the JSON, C libraries print elsewhere)
+    assert main(["run", "stand", "--backend", "quadprog", "--duration", "0.03", "--json"]) == 0
+    data = json.loads(capfd.readouterr().out)
+    assert data["backend"] == "quadprog" and data["fell"] is False
+    assert 0.0 <= data["max_torque_jump_nm"] < 1.0  # standing still: measured 0.01 N m
+
+
+def test_run_with_an_unknown_backend_lists_the_valid_ones(capsys):
+    assert main(["run", "stand", "--backend", "nope", "--duration", "0.01"]) == 2
+    err = capsys.readouterr().err
+    assert "unknown backend 'nope'" in err and "daqp" in err

@@ -11,8 +11,8 @@ from typing import Any
 def add_run_parser(subparsers: Any) -> argparse.ArgumentParser:
     """Add ``hqp run`` to the CLI's subparsers.
 
-    ``hqp run BEHAVIOR [--robot] [--controller] [--duration] [--inputs] [--set] [--json]
-    [--video]``.
+    ``hqp run BEHAVIOR [--robot] [--controller] [--backend] [--duration] [--inputs] [--set]
+    [--json] [--video]``.
     """
     p = subparsers.add_parser(
         "run", help="run a behavior (library name or .toml file) in MuJoCo",
@@ -21,6 +21,9 @@ def add_run_parser(subparsers: Any) -> argparse.ArgumentParser:
     p.add_argument("behavior", help="library name (see `hqp behaviors`) or a .toml file")
     p.add_argument("--robot", default=None, help="robot (default: the behavior's)")
     p.add_argument("--controller", default="hqp", choices=("hqp", "nullspace"))
+    p.add_argument("--backend", default=None,
+                   help="QP backend of the HQP controller: proxsuite, daqp, quadprog, osqp "
+                        "(default: the behavior's, else proxsuite)")
     p.add_argument("--duration", type=float, default=None,
                    help="simulated time [s] (default: the behavior's)")
     p.add_argument("--inputs", default=None,
@@ -69,7 +72,7 @@ def run_command(args: argparse.Namespace) -> int:
     with stdout_to_stderr() as out:
         result = run_behavior(args.behavior, robot=args.robot, controller=args.controller,
                               duration=args.duration, inputs=args.inputs, overrides=overrides,
-                              video=args.video, progress=progress)
+                              video=args.video, progress=progress, backend=args.backend)
         print(file=sys.stderr)
         data = result.as_json()
         if args.json:
@@ -80,7 +83,8 @@ def run_command(args: argparse.Namespace) -> int:
               f"{data['duration_s']:.2f} s: {outcome}")
         print(f"  phases: {' -> '.join(data['phases'])}")
         print(f"  footsteps: {data['steps']}, longest flight: {data['flight_time_s']:.3f} s, "
-              f"max |tau|/tau_max: {data['max_torque_ratio']:.2f}")
+              f"max |tau|/tau_max: {data['max_torque_ratio']:.2f}, largest torque change in "
+              f"one step: {data['max_torque_jump_nm']:.1f} N m")
         if "mean_speed_m_s" in data:
             print(f"  mean speed {data['mean_speed_m_s']:.3f} m/s, CoM tracking error max "
                   f"{1e3 * data['com_tracking_error_max_m']:.1f} mm")
