@@ -23,13 +23,13 @@ Hierarchies:
 
 Duration: 2 s (the paper's plots run 3 s). Measured with
 ``hqp compare hand-reach --controllers hqp --json`` (scenario metrics
-``<joint>_limit_gap_rad``, ``<joint>_limit_reached_s``, ``hand_speed_final_mps``
-of :func:`limit_metrics`): the right elbow reaches its extension limit (0 rad)
-at 0.11 s in both hierarchies (the arm straightens towards the target); the
-right hip flexion reaches -2.09 rad at 1.80 s in ``cog-first`` (``shared``: 0.13
-rad short at 2 s, reached at 2.3 s); the hand is still closing in (0.18 m/s).
+``<joint>_flexion_gap_rad``, ``<joint>_flexion_limit_s``, ``hand_speed_final_mps``
+of :func:`limit_metrics`): in ``cog-first`` the right elbow reaches its
+flexion limit (-1.30 rad) at 1.52 s and the right hip its flexion limit
+(-2.09 rad) at 1.80 s; in ``shared`` neither by 2 s (0.08 and 0.13 rad short;
+the hip gets there at 2.3 s). The hand is still closing in at 2 s (0.18 m/s).
 The knee-flexion limit is not reached (the right knee bends from -0.30 to
--0.63 rad by 2 s; limit -1.50 rad), and no target makes it:
+-0.63 rad; limit -1.50 rad), and no target makes it:
 
 - This robot reaches low with its trunk: hip flexion to 2.09 rad plus torso
   pitch to 1.40 rad take the hand below the floor with the knees at about
@@ -120,14 +120,18 @@ HAND_REST_WINDOW = 0.1
 
 
 def limit_metrics(trace: Trace) -> dict[str, float | None]:
-    """Closest approach of each plotted joint to its limits, when it reached one, hand speed.
+    """Closest approach of each plotted joint to its flexion limit, when reached, hand speed.
 
-    Scenario metrics added to the contract's row (extra fields are allowed there):
+    The paper's limits are flexion limits (hip, elbow, knee flexion); on
+    ``paper-humanoid`` flexion is the negative direction of every plotted joint
+    (elbow, knee, hip pitch; ankle pitch: dorsiflexion), so its flexion limit is
+    its lower limit. Scenario metrics added to the contract's row (extra fields
+    are allowed there):
 
-    - ``<joint>_limit_gap_rad``: ``min_t min(q - q_lower, q_upper - q)`` over the run
-      (negative: past a limit) [rad];
-    - ``<joint>_limit_reached_s``: first time the joint came within
-      :data:`LIMIT_TOLERANCE` of a limit (``None``: never) [s];
+    - ``<joint>_flexion_gap_rad``: ``min_t (q - q_lower)`` over the run
+      (negative: past the limit) [rad];
+    - ``<joint>_flexion_limit_s``: first time the joint came within
+      :data:`LIMIT_TOLERANCE` of that limit (``None``: never) [s];
     - ``hand_speed_final_mps``: mean speed of the hand over the last
       :data:`HAND_REST_WINDOW` [m/s] (``None`` without a hand).
 
@@ -137,11 +141,10 @@ def limit_metrics(trace: Trace) -> dict[str, float | None]:
         if joint not in trace.joint_names:
             continue
         i = trace.joint_names.index(joint)
-        q = trace.q[:, i]
-        gap = np.minimum(q - trace.q_lower[i], trace.q_upper[i] - q)
+        gap = trace.q[:, i] - trace.q_lower[i]
         near = np.flatnonzero(gap <= LIMIT_TOLERANCE)
-        out[f"{joint}_limit_gap_rad"] = float(gap.min())
-        out[f"{joint}_limit_reached_s"] = float(trace.t[near[0]]) if near.size else None
+        out[f"{joint}_flexion_gap_rad"] = float(gap.min())
+        out[f"{joint}_flexion_limit_s"] = float(trace.t[near[0]]) if near.size else None
     out["hand_speed_final_mps"] = None
     if trace.hand is not None and trace.t.size > 1:
         last = trace.t >= trace.t[-1] - HAND_REST_WINDOW

@@ -102,31 +102,31 @@ def test_plot_panels_writes_a_png(tmp_path) -> None:
 
 
 def test_hand_reach_limit_metrics() -> None:
-    """Closest approach to a limit, first time within 0.02 rad, final hand speed."""
+    """Closest approach to the flexion (lower) limit, first time within 0.02 rad, hand speed."""
     from comparisons.hand_reach import limit_metrics
 
     n, dt = 201, 0.01  # 2 s
     t = np.arange(n) * dt
     names = ("right_elbow", "right_knee", "other")
+    lower, upper = np.array([-1.3, -1.5, -1.0]), np.array([0.0, 0.0, 1.0])
     q = np.zeros((n, 3))
-    q[:, 0] = -0.205 * (1.0 - np.minimum(t, 1.0))  # elbow to its 0 limit at 1 s
-    q[:, 1] = -0.3 - 0.5 * t  # knee to -1.3, limit -1.5: 0.2 rad short
+    q[:, 0] = -1.305 * np.minimum(t, 1.0)  # elbow to its -1.3 flexion limit at about 1 s
+    q[:, 1] = -0.3 - 0.5 * t  # knee to -1.3, limit -1.5: 0.2 rad short (0 upper: ignored)
     hand = np.zeros((n, 3))
     hand[:, 0] = 0.5 * t  # 0.5 m/s throughout
-    trace = _trace(n, dt, q=q, joint_names=names, q_lower=np.array([-1.3, -1.5, -1.0]),
-                   q_upper=np.array([0.0, 0.0, 1.0]), hand=hand, hand_goal=np.ones((n, 3)))
+    trace = _trace(n, dt, q=q, joint_names=names, q_lower=lower, q_upper=upper, hand=hand,
+                   hand_goal=np.ones((n, 3)))
     m = limit_metrics(trace)
-    np.testing.assert_allclose(m["right_elbow_limit_gap_rad"], 0.0, atol=1e-12)
-    np.testing.assert_allclose(m["right_elbow_limit_reached_s"], 0.91, atol=1e-9)  # t > 0.9024
-    np.testing.assert_allclose(m["right_knee_limit_gap_rad"], 0.2, atol=1e-9)
-    assert m["right_knee_limit_reached_s"] is None
-    assert "other_limit_gap_rad" not in m and "right_hip_pitch_limit_gap_rad" not in m
+    np.testing.assert_allclose(m["right_elbow_flexion_gap_rad"], -0.005, atol=1e-12)
+    np.testing.assert_allclose(m["right_elbow_flexion_limit_s"], 0.99, atol=1e-9)  # t >= 0.9808
+    np.testing.assert_allclose(m["right_knee_flexion_gap_rad"], 0.2, atol=1e-9)
+    assert m["right_knee_flexion_limit_s"] is None
+    assert "other_flexion_gap_rad" not in m and "right_hip_pitch_flexion_gap_rad" not in m
     np.testing.assert_allclose(m["hand_speed_final_mps"], 0.5, rtol=1e-9)
     q[150:, 1] = -1.51  # 0.01 rad past the limit from 1.5 s
-    m = limit_metrics(_trace(n, dt, q=q, joint_names=names, q_lower=np.array([-1.3, -1.5, -1.0]),
-                             q_upper=np.array([0.0, 0.0, 1.0])))
-    np.testing.assert_allclose(m["right_knee_limit_gap_rad"], -0.01, atol=1e-9)
-    np.testing.assert_allclose(m["right_knee_limit_reached_s"], 1.5, atol=1e-9)
+    m = limit_metrics(_trace(n, dt, q=q, joint_names=names, q_lower=lower, q_upper=upper))
+    np.testing.assert_allclose(m["right_knee_flexion_gap_rad"], -0.01, atol=1e-9)
+    np.testing.assert_allclose(m["right_knee_flexion_limit_s"], 1.5, atol=1e-9)
     assert m["hand_speed_final_mps"] is None
 
 
@@ -244,14 +244,12 @@ def test_hand_reach_hqp_shows_what_the_paper_shows() -> None:
         assert m[h]["joint_limit_violation_max_rad"] < 1e-3, m
         assert m[h]["torque_clipping_count"] == 0, m
         assert m[h]["fell"] is False, m
-        # Joint limits reached (within 0.02 rad, comparisons.hand_reach.LIMIT_TOLERANCE):
-        # the right elbow straightens to its 0 limit at 0.11 s (gap < 1e-4 measured).
-        assert m[h]["right_elbow_limit_gap_rad"] <= 0.02, m
-        assert m[h]["right_elbow_limit_reached_s"] < 0.5, m
         # The knee-flexion limit is not reached (module docstring: no target makes it on this
-        # robot); measured: the knee stays 0.3 rad from its limits (0.87 rad from -1.5).
-        assert m[h]["right_knee_limit_reached_s"] is None, m
-    # cog-first: the right hip flexion reaches -2.09 rad at 1.80 s (gap 1.4e-6 rad); shared
-    # reaches it only at 2.3 s (0.13 rad short at 2 s).
-    assert m["cog-first"]["right_hip_pitch_limit_gap_rad"] <= 0.02, m
-    assert m["cog-first"]["right_hip_pitch_limit_reached_s"] < 1.95, m
+        # robot); measured: 0.87 rad from its -1.5 rad limit at the end.
+        assert m[h]["right_knee_flexion_gap_rad"] > 0.5, m
+    # cog-first reaches the right elbow's flexion limit at 1.52 s and the right hip's at
+    # 1.80 s (within 0.02 rad, comparisons.hand_reach.LIMIT_TOLERANCE; both gaps < 1e-4 rad);
+    # shared reaches neither by 2 s (0.08 and 0.13 rad short).
+    for joint in ("right_elbow", "right_hip_pitch"):
+        assert m["cog-first"][f"{joint}_flexion_gap_rad"] <= 0.02, m
+        assert m["cog-first"][f"{joint}_flexion_limit_s"] < 1.95, m
