@@ -113,9 +113,21 @@ def test_stale_guess_at_an_infinite_bound_is_harmless():
     lo, up = np.array([-np.inf]), np.array([0.5])
     one = np.ones(1)
     stale = Guess(np.array([-1], dtype=np.int8), np.zeros(0, dtype=np.int8))
-    v, _g, _its = solve_guess(A, b, C, lo, up, one, one, None, None, None, None, None, None,
-                              None, stale, 1e-9, 1.0)
-    assert v is None  # rejected: the caller solves the QP
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no NaN arithmetic (it warned before the fix)
+        v, g, _its = solve_guess(A, b, C, lo, up, one, one, None, None, None, None, None, None,
+                                 None, stale, 1e-9, 1.0)
+    # the row held at its (now infinite) lower bound is released: the true minimiser
+    np.testing.assert_allclose(v, [1.0, 0.0], atol=1e-15)
+    assert not g.s.any()
+    # the same for a carried row (held in w) whose upper bound became infinite
+    G = np.array([[0.0, 1.0]])
+    held = Guess(np.zeros(1, dtype=np.int8), np.array([1], dtype=np.int8))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        v, g, _its = solve_guess(A, b, C, lo, up, one, one, None, None, G, np.array([-1.0]),
+                                 np.array([np.inf]), one, one, held, 1e-9, 1.0)
+    np.testing.assert_allclose(v, [1.0, 0.0], atol=1e-15)
     solver = HierarchicalSolver("proxsuite")
     levels = [Level(A=A, b=b), Level(C=C, lower=[-1.0], upper=[0.5]), Level(A=np.eye(2))]
     solver.solve(levels)  # row 0 of level 1 held at its lower bound -1

@@ -138,8 +138,18 @@ def solve_guess(
     if p:
         gl_in = gl - FEAS_TOL * gls
         gu_in = gu + FEAS_TOL * gus
-    # (a stale guess holding a row at an infinite bound gives a non-finite point:
-    # rejected below, and the caller's QP then gives the next guess)
+    # a stale guess (bounds change between control steps) may hold a row at a bound that is
+    # now infinite: release those rows rather than solve for a non-finite point
+    if mc and s.any():
+        stale = ((s > 0) & ~np.isfinite(up)) | ((s < 0) & ~np.isfinite(lo))
+        if stale.any():
+            s = s.copy()
+            s[stale] = 0
+    if p and w.any():
+        stale = ((w > 0) & ~np.isfinite(gu)) | ((w < 0) & ~np.isfinite(gl))
+        if stale.any():
+            w = w.copy()
+            w[stale] = 0
     es = np.maximum(1.0, np.abs(e)) if me else None
     seen: set[bytes] = set()
     for it in range(max_iter + 1):
