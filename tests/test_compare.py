@@ -253,3 +253,75 @@ def test_hand_reach_hqp_shows_what_the_paper_shows() -> None:
     for joint in ("right_elbow", "right_hip_pitch"):
         assert m["cog-first"][f"{joint}_flexion_gap_rad"] <= 0.02, m
         assert m["cog-first"][f"{joint}_flexion_limit_s"] < 1.95, m
+
+
+def _static_reach(knee_fixed: bool):
+    """Closest static reach of the hand-reach target (feet fixed, CoG over the feet, limits)."""
+    import pinocchio as pin
+    from scipy.optimize import minimize
+
+    import hqp.robots as robots
+    from comparisons.hand_reach import HandReachParameters
+
+    rob = robots.load("paper-humanoid")
+    m = rob.pinocchio_model()
+    d = m.createData()
+    rm = rob.model()
+    lo, hi = rm.q_lower.copy(), rm.q_upper.copy()
+    qs = rob.q_standing.copy()
+    names = [m.names[i] for i in range(2, m.njoints)]
+    knee = names.index("right_knee")
+    if knee_fixed:
+        hi[knee] = lo[knee] + 1e-9  # held at its flexion limit
+    feet = [m.getFrameId(f) for f in rob.feet]
+    hand = m.getFrameId(rob.hands[1])
+    pin.framesForwardKinematics(m, d, qs)
+    soles = [d.oMf[f].copy() for f in feet]
+    centre = 0.5 * (soles[0].translation + soles[1].translation)
+    target = np.array([centre[0], centre[1], 0.0]) + np.array(HandReachParameters().target_offset)
+
+    def q_of(x):
+        q = qs.copy()
+        q[:7] = pin.integrate(m, qs, np.r_[x[:6], np.zeros(m.nv - 6)])[:7]
+        q[7:] = qs[7:] + x[6:]
+        return q
+
+    def balance(x):
+        q = q_of(x)
+        pin.framesForwardKinematics(m, d, q)
+        c = pin.centerOfMass(m, d, q)
+        slips = [pin.log6(sole.actInv(d.oMf[f])).vector for sole, f in zip(soles, feet)]
+        return np.concatenate([*slips, c[:2] - centre[:2]])
+
+    def distance2(x):
+        q = q_of(x)
+        pin.framesForwardKinematics(m, d, q)
+        e = d.oMf[hand].translation - target
+        return float(e @ e)
+
+    x0 = np.zeros(m.nv)
+    bounds = [(None, None)] * 6 + [(lo[i] - qs[7 + i], hi[i] - qs[7 + i]) for i in range(m.nv - 6)]
+    x0[6:] = np.clip(x0[6:], [b[0] for b in bounds[6:]], [b[1] for b in bounds[6:]])
+    r = minimize(distance2, x0, method="SLSQP", bounds=bounds,
+                 constraints=[{"type": "eq", "fun": balance}],
+                 options={"maxiter": 500, "ftol": 1e-12})
+    assert r.success, r.message
+    assert np.abs(balance(r.x)).max() < 1e-6
+    return float(np.sqrt(r.fun)), float(q_of(r.x)[7 + knee]), float(lo[knee])
+
+
+@pytest.mark.slow
+def test_hand_reach_knee_flexion_limit_does_not_help_the_hand_on_paper_humanoid():
+    # Evidence for the scenario's one difference from the issue's text: on paper-humanoid
+    # (sourced segment lengths and ranges) the closest static reach of the target bends the
+    # trunk (hip flexion and torso pitch), not the knees; holding the right knee at its
+    # flexion limit leaves the hand further away (the deep squat turns the trunk upright).
+    free, knee_free, limit = _static_reach(knee_fixed=False)
+    fixed, knee_fixed, _ = _static_reach(knee_fixed=True)
+    print(f"static reach: knee free {free:.4f} m (knee {knee_free:.3f} rad), "
+          f"knee at its limit {fixed:.4f} m")
+    # measured: 0.148 m from the target with the right knee straight (0 rad); 0.202 m with it
+    # held at -1.5 rad (torque limits not imposed here; the closed loop ends 25-28 cm short)
+    assert knee_free > limit + 0.3  # [rad]
+    assert abs(knee_fixed - limit) < 1e-6
+    assert fixed > free + 0.01  # [m] the knee at its limit costs the hand centimetres
