@@ -108,7 +108,10 @@ def test_library_behavior_runs_without_falling(name: str) -> None:
         # the tool is taken (1 s), then the tool point rises above 1.20 m at t = 2.5 s
         # (screwgun_inputs.jsonl): posture switch
         assert result.phases[:3] == ["ready", "low", "high"]
-        assert result.metrics["task_errors"]["high"]["tool_point"]["final"] < 0.03  # [m]
+        # at the end of `high` the tool point moves down at 0.15 m/s (inputs from t = 5 s): the
+        # PD law lags by kv v / kp = 0.2 s x 0.15 m/s = 30 mm (the streamed input carries no
+        # goal velocity); measured 30.1 mm, and 7 mm while the point is still (t = 3.5-5 s)
+        assert result.metrics["task_errors"]["high"]["tool_point"]["final"] < 0.035  # [m]
 
 
 NO_FLIGHT = (
