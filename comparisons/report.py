@@ -27,6 +27,34 @@ COLUMNS: tuple[tuple[str, str], ...] = (
 
 _SKIP = {"controller", "hierarchy", "note"}
 
+_UNITS: tuple[tuple[str, str], ...] = (
+    ("_flexion_gap_rad", " from limit [rad]"),
+    ("_flexion_limit_s", " at limit [s]"),
+    ("_mps", " [m/s]"),
+    ("_rad", " [rad]"),
+    ("_deg", " [deg]"),
+    ("_cm", " [cm]"),
+    ("_mm", " [mm]"),
+    ("_ms", " [ms]"),
+    ("_s", " [s]"),
+)
+
+
+def header(key: str) -> str:
+    """Short column header of a scenario-specific metric key (the JSON keeps the key).
+
+    ``right_elbow_flexion_gap_rad`` -> ``elbow from limit [rad]``,
+    ``hand_speed_final_mps`` -> ``hand speed final [m/s]``.
+    """
+    name, unit = key, ""
+    for suffix, label in _UNITS:
+        if name.endswith(suffix):
+            name, unit = name[: -len(suffix)], label
+            break
+    if name.startswith("right_"):
+        name = name[len("right_"):]
+    return name.replace("_", " ") + unit
+
 
 def _fmt(value: Any) -> str:
     """Format one cell."""
@@ -58,7 +86,7 @@ def format_rows(scenario: str, robot: str, rows: list[dict[str, Any]]) -> str:
         for k in row:
             if k not in _SKIP and k not in keys:
                 keys.append(k)
-                headers.append(k)
+                headers.append(header(k))
     table = [["controller", "hierarchy", *headers]]
     for row in rows:
         table.append([row["controller"], row["hierarchy"], *(_fmt(row.get(k)) for k in keys)])

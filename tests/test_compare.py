@@ -179,6 +179,17 @@ def test_contract_json_shape_and_table() -> None:
     assert len(table.splitlines()) == 3 + 4
 
 
+def test_scenario_metric_headers_are_short() -> None:
+    from comparisons.report import header
+
+    assert header("right_elbow_flexion_gap_rad") == "elbow from limit [rad]"
+    assert header("right_knee_flexion_limit_s") == "knee at limit [s]"
+    assert header("hand_speed_final_mps") == "hand speed final [m/s]"
+    assert header("obstacle_distance_min_cm") == "obstacle distance min [cm]"
+    assert header("trunk_tilt_max_deg") == "trunk tilt max [deg]"
+    assert header("plain") == "plain"
+
+
 # -- closed-loop runs in MuJoCo (slow) -------------------------------------------------------
 
 TIMING = {"step_time_median_ms"}
