@@ -55,6 +55,8 @@ import numpy as np
 from hqp.errors import HQPError, InvalidInput, InvalidLevel, UnknownName
 from hqp.layout import ContactType
 from hqp.tasks.base import Category, Rows, Task
+from hqp.tasks.reference import MIN_JERK_PEAK_ACCELERATION, MIN_JERK_PEAK_VELOCITY
+from hqp.tasks.tracking import TrackingTask
 
 if TYPE_CHECKING:
     from hqp.layout import Layout
@@ -680,17 +682,13 @@ def _ramp_goal(task: Task, model: RobotModel, duration: float, t: float) -> None
         goal = goal_at(t).position
     except HQPError:
         return  # no goal set: nothing to ramp
-    move_to(model, goal, max(duration, _saturation_time(task, model, t)), t)
+    if isinstance(task, TrackingTask):
+        duration = max(duration, _saturation_time(task, model, t))
+    move_to(model, goal, duration, t)
 
 
-MIN_JERK_PEAK_VELOCITY = 1.875
-"""Peak velocity of a minimum-jerk move of length ``d`` over ``T``, in units of ``d / T``."""
-MIN_JERK_PEAK_ACCELERATION = 10.0 / math.sqrt(3.0)
-"""Peak acceleration of a minimum-jerk move, in units of ``d / T^2`` (5.77)."""
-
-
-def _saturation_time(task: Task, model: RobotModel, t: float) -> float:
-    """Shortest minimum-jerk duration [s] from the task's value to its goal within its saturations.
+def _saturation_time(task: TrackingTask, model: RobotModel, t: float) -> float:
+    """Shortest minimum-jerk duration [s] from the task's value to its goal within its PD law.
 
     A goal ramp's feed-forward is not limited by the task's PD law (seed 003 eq. 27-28 saturates
     the feedback only), so a far goal ramped over a short ``ramp_time`` would ask for more than
@@ -698,32 +696,23 @@ def _saturation_time(task: Task, model: RobotModel, t: float) -> float:
     peak acceleration ``5.77 d / T^2`` stay within what the PD law asks for the same error ``d``
     (the norm of the task's error; a pose task's translation and rotation separately): the
     corrective velocity ``min(max_velocity, kp d / kv)`` and the feedback acceleration
-    ``min(max_acceleration, kp d)``. 0 for tasks without a PD law or error.
+    ``min(max_acceleration, kp d)``.
     """
-    reference = getattr(task, "reference", None)
-    kinematics = getattr(task, "kinematics", None)
-    if reference is None or kinematics is None:
-        return 0.0
     try:
-        error = getattr(kinematics(model, t), "error", None)
+        error = task.kinematics(model, t).error
     except HQPError:
         return 0.0
-    if error is None:
-        return 0.0
-    error = np.asarray(error, dtype=float)
-    parts = [(error, reference)]
-    angular = getattr(task, "angular_reference", None)
+    parts = [(error, task.reference)]
+    angular = getattr(task, "angular_reference", None)  # pose tasks: the rotation's own law
     if angular is not None and error.size == 6:
-        parts = [(error[:3], reference), (error[3:], angular)]
+        parts = [(error[:3], task.reference), (error[3:], angular)]
     duration = 0.0
     for part, ref in parts:
         d = float(np.linalg.norm(part))
         if d == 0.0:
             continue
-        kp, kv = float(getattr(ref, "kp", 0.0)), float(getattr(ref, "kv", 0.0))
-        vmax = min(float(getattr(ref, "max_velocity", math.inf)),
-                   kp * d / kv if kv > 0.0 else math.inf)
-        amax = min(float(getattr(ref, "max_acceleration", math.inf)), kp * d)
+        vmax = min(ref.max_velocity, ref.kp * d / ref.kv if ref.kv > 0.0 else math.inf)
+        amax = min(ref.max_acceleration, ref.kp * d)
         if math.isfinite(vmax) and vmax > 0.0:
             duration = max(duration, MIN_JERK_PEAK_VELOCITY * d / vmax)
         if math.isfinite(amax) and amax > 0.0:

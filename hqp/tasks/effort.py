@@ -91,15 +91,23 @@ class ForceRegularization(Task):
 
     def __init__(self, robot: RobotModel, *, name: str = "forces", weight: float = 1.0) -> None:
         super().__init__(name, weight)
-        g = float(np.linalg.norm(getattr(robot, "gravity_vector", [0.0, 0.0, 9.81])))
-        self._scale = 1.0 / (float(robot.mass) * (g if g > 0.0 else 9.81))
+        self._scale = 1.0 / (robot.mass * float(np.linalg.norm(robot.gravity_vector)))
+        self._rows: tuple[tuple[int, int], Rows] | None = None
 
     def rows(self, state: RobotModel, layout: Layout, dt: float, t: float) -> Rows:
-        """Equality rows ``(n - nv, n)``: every contact component divided by ``m g``, target 0."""
-        n, nv = layout.n, layout.nv
-        A = np.zeros((n - nv, n))
-        A[:, nv:] = self._scale * np.eye(n - nv)
-        return Rows(A=A, b=np.zeros(n - nv))
+        """Equality rows ``(n - nv, n)``: every contact component divided by ``m g``, target 0.
+
+        They depend on the layout only: built once per layout and reused (read-only).
+        """
+        key = (layout.n, layout.nv)
+        if self._rows is None or self._rows[0] != key:
+            n, nv = key
+            A = np.zeros((n - nv, n))
+            A[:, nv:] = self._scale * np.eye(n - nv)
+            b = np.zeros(n - nv)
+            A.flags.writeable = b.flags.writeable = False  # shared by every step
+            self._rows = key, Rows(A=A, b=b)
+        return self._rows[1]
 
     def error(self) -> np.ndarray:
         """Empty: the task has no goal other than zero force."""

@@ -207,6 +207,12 @@ def check_trajectory(trajectory: object, where: str) -> Trajectory:
     return trajectory  # type: ignore[return-value]
 
 
+MIN_JERK_PEAK_VELOCITY = 1.875
+"""Peak velocity of a minimum-jerk move of length ``d`` over ``T``, in units of ``d / T``."""
+MIN_JERK_PEAK_ACCELERATION = 10.0 / math.sqrt(3.0)
+"""Peak acceleration of a minimum-jerk move, in units of ``d / T^2`` (5.77)."""
+
+
 def _min_jerk_profile(tau: float, duration: float) -> tuple[float, float, float]:
     """Minimum-jerk fraction ``s`` and its first two time derivatives, clipped to ``[0, T]``."""
     if tau <= 0.0:
