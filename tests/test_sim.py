@@ -196,10 +196,10 @@ def test_unreachable_hand_goal_never_drives_a_joint_past_its_limit():
     # the robot's own (wider) ranges.
     arm = [full.joint_index(n) for n in full.joint_names if n.startswith("right_")
            and ("elbow" in n or "shoulder" in n)]
-    mid = 0.5 * (lo[arm] + hi[arm])
-    lo[arm] = np.maximum(lo[arm], r.q_standing[7:][arm] - 0.3)
-    hi[arm] = np.minimum(hi[arm], r.q_standing[7:][arm] + 0.3)
-    assert np.all(lo[arm] < mid) or True
+    q0 = r.q_standing[7:][arm]
+    lo[arm] = np.maximum(lo[arm], q0 - 0.3)
+    hi[arm] = np.minimum(hi[arm], q0 + 0.3)
+    assert np.all((lo[arm] < q0) & (q0 < hi[arm]))  # the robot starts inside the narrowed ranges
     model = RobotModel(r.pinocchio_model(), name=r.name, position_limits=(lo, hi),
                        velocity_limits=full.v_max, torque_limits=full.tau_max)
     stack, contacts = standing_stack(r, model)

@@ -365,7 +365,9 @@ class Behavior:
                 # ramping in (its goal starts at its current value, see hqp.stack) by a step
                 continue
             self.factory.set_goals(self.tasks[ts.name], ts, values)
-            self._goals_set[ts.name] = values
+            # copies: a value may be an array its producer updates in place
+            self._goals_set[ts.name] = {k: np.array(v, copy=True) if isinstance(v, np.ndarray)
+                                        else v for k, v in values.items()}
 
 
 def _same_values(values: dict[str, Any], previous: dict[str, Any] | None) -> bool:

@@ -78,7 +78,7 @@ class ForceRegularization(Task):
     sees. Placed, weighted, in the lowest level it keeps that level from buying a tiny
     decrease of its cost with contact forces at the corners of the friction pyramids, which
     otherwise jump from one step to the next (measured on ``walk``: the largest per-step
-    torque change fell from 154 N m to 44 N m).
+    torque change fell from 154 N m to 52 N m).
 
     Args:
         robot: Robot model (its mass).
