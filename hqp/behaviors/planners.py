@@ -26,6 +26,7 @@ import numpy as np
 
 from hqp.errors import BehaviorFileError
 from hqp.model import RobotModel
+from hqp.tasks.reference import min_jerk_profile
 
 WALK_DEFAULTS: dict[str, float | int] = {
     "distance": 1.0,
@@ -55,13 +56,6 @@ support begins and lands this long before it ends [s]; ``unload_lead``: how long
 a lift-off ``plan.<side>_unload`` is true (the time given to unload the foot) [s]."""
 
 _SIDES = ("left", "right")
-
-
-def _min_jerk(s: float) -> tuple[float, float, float]:
-    """Minimum-jerk profile ``10 s^3 - 15 s^4 + 6 s^5`` and its first two derivatives."""
-    return (s**3 * (10.0 - 15.0 * s + 6.0 * s * s),
-            30.0 * s * s * (1.0 - s) ** 2,
-            60.0 * s * (1.0 - s) * (1.0 - 2.0 * s))
 
 
 def _bump(s: float) -> tuple[float, float, float]:
@@ -119,7 +113,7 @@ class SwingTrajectory:
         """Position ``(3,)`` [m], velocity [m/s] and acceleration [m/s^2] at time ``t`` [s]."""
         s = self.progress(t)
         T = self.duration
-        m, dm, ddm = _min_jerk(s)
+        m, dm, ddm = min_jerk_profile(s, 1.0)
         b, db, ddb = _bump(s)
         delta = self.end - self.start
         up = np.array([0.0, 0.0, self.height])

@@ -213,8 +213,19 @@ MIN_JERK_PEAK_ACCELERATION = 10.0 / math.sqrt(3.0)
 """Peak acceleration of a minimum-jerk move, in units of ``d / T^2`` (5.77)."""
 
 
-def _min_jerk_profile(tau: float, duration: float) -> tuple[float, float, float]:
-    """Minimum-jerk fraction ``s`` and its first two time derivatives, clipped to ``[0, T]``."""
+def min_jerk_profile(tau: float, duration: float) -> tuple[float, float, float]:
+    """Minimum-jerk fraction and its first two time derivatives.
+
+    Args:
+        tau: Time since the start [s], clipped to ``[0, duration]``.
+        duration: Length ``T`` of the profile [s] (``1.0``: derivatives with respect to the
+            fraction of time ``u``).
+
+    Returns:
+        ``s = 10 u^3 - 15 u^4 + 6 u^5`` with ``u = tau / T``, ``ds/dt`` [1/s] and
+        ``d2s/dt2`` [1/s^2]; zero velocity and acceleration at both ends.
+
+    """
     if tau <= 0.0:
         return 0.0, 0.0, 0.0
     if tau >= duration:
@@ -366,7 +377,7 @@ class MinimumJerkRotation:
 
     def sample(self, t: float) -> TrajectorySample:
         """Rotation ``(3, 3)``, world angular velocity and acceleration ``(3,)`` at ``t``."""
-        s, ds, dds = _min_jerk_profile(float(t) - self.t0, self.duration)
+        s, ds, dds = min_jerk_profile(float(t) - self.t0, self.duration)
         R = self.start @ pin.exp3(s * self._w)
         return TrajectorySample(R, ds * self._w_world, dds * self._w_world)
 
