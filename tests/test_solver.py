@@ -485,3 +485,31 @@ def test_benchmark_hierarchies_agree(n, levels):
                                ("daqp", "basis")]:
         costs = solve(hierarchy, backend=backend, algorithm=algorithm).costs
         assert np.all(np.abs(costs - ref) <= cost_tol(ref)), (backend, algorithm, costs, ref)
+
+
+def test_last_resort_fallback_is_warned_once_per_qp_then_logged_at_debug(caplog):
+    # A backend that never returns a finite point: quadprog takes over (same minimiser), and a
+    # controller calling this every step logs one warning per QP slot, not one per step.
+    import logging
+
+    from hqp.solver.backend import QPBackend
+    from hqp.solver.hierarchy import _qp
+
+    class Broken(QPBackend):
+        name = "broken-for-test"
+
+        def solve(self, slot, H, g, E, e, C, lo, up):
+            return np.full(H.shape[0], np.nan), False
+
+    H, g = np.eye(2), np.array([-1.0, -4.0])
+    C, lo, up = np.eye(2), np.full(2, -1.0), np.full(2, 1.0)
+    backend = Broken()
+    with caplog.at_level(logging.DEBUG, logger="hqp.solver.hierarchy"):
+        for _ in range(5):
+            v, _ok = _qp(backend, ("test", 0), H, g, None, None, C, lo, up)
+            np.testing.assert_allclose(v, [1.0, 1.0], atol=1e-9)
+        _qp(backend, ("test", 1), H, g, None, None, C, lo, up)
+    warned = [r for r in caplog.records if r.levelno == logging.WARNING]
+    assert len(warned) == 2  # one per slot
+    assert "further occurrences" in warned[0].getMessage()
+    assert sum("trying quadprog" in r.getMessage() for r in caplog.records) == 6

@@ -854,6 +854,11 @@ The larger relaxations are tried only while no finite point came back (an
 unconverged finite iterate is kept, as before)."""
 
 
+_WARNED_LAST_RESORT: set[tuple[str, Any]] = set()
+"""``(backend name, QP slot)`` pairs whose fall-back to quadprog was already logged as a
+warning: a controller at 1 kHz would otherwise repeat it every step of a hard phase."""
+
+
 def _qp(backend: QPBackend, slot: Any, H: np.ndarray, g: np.ndarray,
         E: np.ndarray | None, e: np.ndarray | None, C: np.ndarray | None,
         lo: np.ndarray | None, up: np.ndarray | None) -> tuple[np.ndarray, bool]:
@@ -903,8 +908,15 @@ def _qp(backend: QPBackend, slot: Any, H: np.ndarray, g: np.ndarray,
     if not np.isfinite(v).all():
         # Last resort (rare: nearly degenerate feasible sets of real whole-body
         # stacks): another active-set method, rather than no solution at all.
-        logger.warning("backend %s returned no finite solution on QP %s; trying quadprog",
-                       backend.name, slot)
+        key = (backend.name, slot)
+        if key in _WARNED_LAST_RESORT:
+            logger.debug("backend %s returned no finite solution on QP %s; trying quadprog",
+                         backend.name, slot)
+        else:
+            _WARNED_LAST_RESORT.add(key)
+            logger.warning("backend %s returned no finite solution on QP %s; trying quadprog "
+                           "(further occurrences on this QP are logged at debug level)",
+                           backend.name, slot)
         last = _last_resort()
         if last is not None:
             v2, ok2 = last.solve(slot, H, g, E, e, C, lo, up)
