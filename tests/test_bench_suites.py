@@ -131,21 +131,22 @@ def test_ties_are_decided_on_residual_norms_not_on_costs():
     np.testing.assert_array_equal(tightest({"a": a, "b": b}), a)
 
 
-def test_exact_solutions_meet_the_contract_on_recorded_ill_conditioned_steps():
-    # The recorded stand steps replayed in order (warm starts as in the benchmark): whatever
-    # the cascade on ProxQP returns, the basis algorithm's excess over the tightest solution
-    # stays within the contract's 1e-6. Measured with the old rule (ties on costs): 1.26e-5 at
-    # t = 0.45 s and 1.4e-6 at 0.35 and 1.15 s; with ties on residual norms: 0.
-    from hqp.solver import HierarchicalSolver
-
-    solvers = {"basis/daqp": HierarchicalSolver("daqp", "basis"),
-               "cascade/proxsuite": HierarchicalSolver("proxsuite", "cascade")}
-    worst = 0.0
-    for step in load(DATA_DIR / "stand_paper-humanoid.npz"):
-        costs = {name: level_costs(step.levels, solver.solve(step.levels).x)
-                 for name, solver in solvers.items()}
-        worst = max(worst, relative_excess(excess(costs)["basis/daqp"], tightest(costs)))
-    assert worst <= 1e-6
+def test_contract_excess_stops_where_the_solver_gets_ahead_of_the_reference():
+    # Measured on the recorded reach step of talos at t = 0.575 s (residual norms): OSQP is
+    # 2.7e-8 tighter on the contact limits (level 1) than the exact solutions, so it is the
+    # reference, but it violates the joint limits (level 2) by 1.1e-4 where they are at 6.6e-7,
+    # and its posture cost (level 5) is 4.9e-6 (relative) lower. That posture excess is not a
+    # contract miss of the exact solutions: they are ahead on level 2.
+    res_exact = np.array([4.1e-13, 2.712095e-08, 6.615644e-07, 4.2e-16, 11.56287, 678.8023])
+    res_osqp = np.array([3.2e-13, 0.0, 1.078082e-04, 8.9e-16, 11.56287, 678.8006])
+    costs = {"exact": res_exact**2, "osqp": res_osqp**2}
+    ref = tightest(costs)
+    np.testing.assert_array_equal(ref, costs["osqp"])
+    ex = excess(costs)["exact"]
+    assert ex[5] / ref[5] > 4e-6  # the level excess is still reported as measured
+    assert relative_excess(ex, ref) < 1e-12  # the contract excess counts levels 0-2 only
+    # a solver behind the reference everywhere is measured on every level
+    assert relative_excess(np.array([0.0, 0.0, 2.0]), np.array([0.0, 0.0, 1.0])) == 2.0
 
 
 def test_daqp_hierarchy_peer_on_a_planted_problem():

@@ -19,7 +19,8 @@ rounds, one BLAS thread (PlaCo is single-threaded).
 Extra fields: ``phases_ms`` (median model update, rows, solve, torques, report of the step),
 ``levels_ms`` (median time of each level in the solve), ``over_placo`` (median over PlaCo's
 median, same robot, same run), ``level_cost_excess`` and ``cost_excess`` (level costs over the
-tightest hqp configuration, on the levels of the hqp controller at the same states).
+tightest hqp configuration, on the levels of the hqp controller at the same states; the contract
+excess of :func:`hqp.bench.accuracy.relative_excess`, largest over the states).
 """
 
 from __future__ import annotations
@@ -29,7 +30,7 @@ from typing import Any
 
 import numpy as np
 
-from hqp.bench.accuracy import excess, level_costs, tightest
+from hqp.bench.accuracy import ExcessTracker, level_costs
 from hqp.bench.interleave import Timing, interleaved
 from hqp.solver import ALGORITHMS, available_backends
 
@@ -120,16 +121,15 @@ class _Stepper:
 
 
 def _accuracy(steppers: dict[str, _Stepper], sts: list[tuple[np.ndarray, np.ndarray]]
-              ) -> tuple[dict[str, np.ndarray], np.ndarray]:
-    """Excess per level (largest over the states) on the hqp controller's levels."""
+              ) -> tuple[dict[str, np.ndarray], dict[str, float]]:
+    """Excess per level and contract excess (largest over the states) on the hqp levels."""
     from hqp.model import RobotState
 
     hqp_names = [n for n in steppers if n.startswith("hqp/")]
     if not hqp_names:
-        return {}, np.zeros(0)
+        return {}, {}
     ref_name = hqp_names[0]
-    worst: dict[str, np.ndarray] = {}
-    ref_max = None
+    tracker = ExcessTracker()
     t = T0 + 10.0
     for q, v in sts:
         xs = {}
@@ -147,11 +147,8 @@ def _accuracy(steppers: dict[str, _Stepper], sts: list[tuple[np.ndarray, np.ndar
         contract = {k: c for k, c in costs.items() if k.startswith("hqp/")}
         if not contract:
             continue
-        ref = tightest(contract)
-        ref_max = ref if ref_max is None else np.maximum(ref_max, ref)
-        for k, e in excess(costs, contract).items():
-            worst[k] = e if k not in worst else np.maximum(worst[k], e)
-    return worst, (ref_max if ref_max is not None else np.zeros(0))
+        tracker.add(costs, contract)
+    return tracker.level, tracker.contract
 
 
 def run_robot(robot_name: str, names: Sequence[str], *, quick: bool = False,
@@ -194,7 +191,7 @@ def run_robot(robot_name: str, names: Sequence[str], *, quick: bool = False,
     settings = dict(warmup=2, batch=2, min_samples=4, max_seconds=3.0) if quick else dict(
         warmup=2 * len(sts), batch=len(sts), min_samples=80, max_seconds=45.0)
     timings = interleaved(fns, progress=progress, **settings)  # type: ignore[arg-type]
-    ex, ref = _accuracy(steppers, sts)
+    ex, contract_excess = _accuracy(steppers, sts)
     rows: list[dict[str, Any]] = []
     ref_st = next((st for n, st in steppers.items() if n.startswith("hqp/")), None)
     n_var = ref_st.ctrl.layout.n if ref_st is not None else None  # type: ignore[union-attr]
@@ -235,7 +232,7 @@ def run_robot(robot_name: str, names: Sequence[str], *, quick: bool = False,
         if name in ex:
             e = ex[name]
             row["level_cost_excess"] = [float(f"{v:.3g}") for v in e]
-            row["cost_excess"] = float(f"{float(np.max(e / np.maximum(1.0, ref))):.3g}")
+            row["cost_excess"] = float(f"{contract_excess[name]:.3g}")
         rows.append(row)
     for key, suffix in (("median_ms", ""), ("cpu_median_ms", "_cpu")):
         placo = next((r[key] for r in rows if r["solver"] == "placo" and r.get(key)), None)

@@ -12,8 +12,10 @@ steps' level matrices are solved by:
 
 Timing: :func:`hqp.bench.interleave.interleaved` (every configuration of a source in the same
 rounds). Accuracy: each level's cost at the returned ``x`` minus the tightest contract solution
-of the same step (:mod:`hqp.bench.accuracy`), largest over the steps; ``cost_excess`` is the
-largest of those relative to ``max(1, tightest cost)``. Basis rows also carry
+of the same step (:mod:`hqp.bench.accuracy`), largest over the steps (``level_cost_excess``);
+``cost_excess`` is the largest over the steps of the step's contract excess
+(:func:`hqp.bench.accuracy.relative_excess`: relative to ``max(1, tightest cost)``, down to the
+first level where the configuration is strictly ahead of the reference). Basis rows also carry
 ``speedup_vs_cascade`` (cascade median / basis median, same backend); every row carries
 ``over_nullspace`` (its median / the law's median on the same steps).
 """
@@ -26,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from hqp.bench.accuracy import excess, level_costs, tightest
+from hqp.bench.accuracy import ExcessTracker, level_costs
 from hqp.bench.interleave import Timing, interleaved
 from hqp.bench.peers import DaqpHierarchy, law_to_x, nullspace_law_solve
 from hqp.bench.recorded import RecordedStep, available, load
@@ -85,12 +87,13 @@ not timed again: its row reports the accuracy pass's times (``"probe_only": true
 
 
 def accuracy(steps: Sequence[RecordedStep], names: Sequence[str]
-             ) -> tuple[dict[str, np.ndarray], dict[str, str], np.ndarray, dict[str, Timing]]:
-    """Per-level excess (largest over the steps) of each configuration, and failures.
+             ) -> tuple[dict[str, np.ndarray], dict[str, float], dict[str, str], dict[str, Timing]]:
+    """Excesses (largest over the steps) of each configuration, and failures.
 
     Returns:
-        ``(excess by name (L,), error message by failed name, tightest costs (L,) largest over
-        the steps, timings of the accuracy pass's solves by name)``.
+        ``(excess per level by name (L,), contract excess by name (see
+        :func:`hqp.bench.accuracy.relative_excess`), error message by failed name, timings of
+        the accuracy pass's solves by name)``.
 
     """
     import time
@@ -103,10 +106,9 @@ def accuracy(steps: Sequence[RecordedStep], names: Sequence[str]
         except Exception as exc:  # noqa: BLE001 - an unavailable configuration is reported
             failed[name] = f"{type(exc).__name__}: {exc}"
     L = len(steps[0].levels)
-    worst = {name: np.full(L, -np.inf) for name in fns}
+    tracker = ExcessTracker()
     probe: dict[str, list[float]] = {name: [] for name in fns}
     probe_cpu: dict[str, list[float]] = {name: [] for name in fns}
-    ref_max = np.zeros(L)
     for s in steps:
         costs: dict[str, np.ndarray] = {}
         for name, fn in fns.items():
@@ -126,18 +128,17 @@ def accuracy(steps: Sequence[RecordedStep], names: Sequence[str]
         contract = {k: v for k, v in costs.items() if "/" in k and np.all(np.isfinite(v))}
         if not contract:
             continue
-        ref = tightest(contract)
-        ref_max = np.maximum(ref_max, ref)
-        for name, ex in excess(costs, contract).items():
-            worst[name] = np.maximum(worst[name], ex)
-    return ({k: v for k, v in worst.items() if k not in failed}, failed, ref_max,
+        tracker.add(costs, contract)
+    worst = {k: tracker.level.get(k, np.full(L, -np.inf)) for k in fns if k not in failed}
+    rel = {k: tracker.contract.get(k, -np.inf) for k in worst}
+    return (worst, rel, failed,
             {k: Timing(np.asarray(v), False, np.asarray(probe_cpu[k])) for k, v in probe.items()})
 
 
 def run_source(steps: Sequence[RecordedStep], names: Sequence[str], *, quick: bool = False,
                progress: Callable[[str], None] | None = None) -> list[dict[str, Any]]:
     """Rows of one recorded source (same robot, same level shapes)."""
-    ex, failed, ref, probe = accuracy(steps, names)
+    ex, contract_excess, failed, probe = accuracy(steps, names)
     slow = {n for n in names if n not in failed and np.median(probe[n].cpu) > SLOW_SECONDS}
     timed = [n for n in names if n not in failed and n not in slow]
     fns = {n: _cycler(steps, _timed_fn(n)) for n in timed}
@@ -162,7 +163,7 @@ def run_source(steps: Sequence[RecordedStep], names: Sequence[str], *, quick: bo
         if name in slow:
             row["probe_only"] = True
         e = ex[name]
-        rel = float(np.max(e / np.maximum(1.0, ref))) if e.size else 0.0
+        rel = contract_excess[name] if e.size else 0.0
         row.update(median_ms=round(t.median_ms, 4), p95_ms=round(t.p95_ms, 4),
                    settled=t.settled, samples=int(t.samples.size),
                    cpu_median_ms=round(t.cpu_median_ms, 4) if t.cpu.size else None,
