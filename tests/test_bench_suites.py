@@ -247,3 +247,15 @@ def test_profile_breakdown_names_the_phases_of_a_step():
     assert parts["  QP backend calls"] <= parts["solve"] + 1e-9
     assert parts["model update"] + parts["rows (stack.build)"] + parts["solve"] <= (
         parts["step"] + 1e-9)
+
+
+def test_peers_outside_the_contract_are_measured_on_every_level():
+    from hqp.bench.accuracy import ExcessTracker
+
+    # the peer is ahead on level 1 (it solves another problem) and far above on level 2
+    costs = {"basis/x": np.array([0.0, 1.0, 1.0]), "peer": np.array([0.0, 0.5, 3.0])}
+    tracker = ExcessTracker()
+    tracker.add(costs, {"basis/x": costs["basis/x"]})
+    assert tracker.contract["basis/x"] == 0.0
+    assert tracker.contract["peer"] == pytest.approx(2.0)
+    np.testing.assert_allclose(tracker.level["peer"], [0.0, -0.5, 2.0])

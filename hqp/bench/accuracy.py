@@ -11,7 +11,8 @@ A solver's excess on level ``k`` is its cost there minus the tightest solution's
 ``cost_excess``) is the largest of these relative to ``max(1, tightest cost)`` over the levels
 down to the first one where the solver is strictly ahead of the reference (residual lower by
 more than the tie): below that level the reference is not an optimum for it to be measured
-against, since the reference bought its lower costs with slack on a level above.
+against, since the reference bought its lower costs with slack on a level above. Peers that
+solve another problem (DAQP's hierarchy, the null-space law) are measured on every level.
 
 The reference is the best solution found, not an exact optimum, and on ill-conditioned steps
 its slack on a higher level moves the lower levels' costs by more than the contract's 1e-6.
@@ -98,12 +99,15 @@ def excess(costs: Mapping[str, np.ndarray], reference: Mapping[str, np.ndarray] 
     return {name: np.asarray(c, dtype=float) - ref for name, c in costs.items()}
 
 
-def relative_excess(ex: np.ndarray, ref: np.ndarray) -> float:
+def relative_excess(ex: np.ndarray, ref: np.ndarray, *, stop_when_ahead: bool = True) -> float:
     """Contract excess: the largest relative excess down to where the solver gets ahead.
 
     Args:
         ex: Excess cost per level over the tightest solution ``(L,)`` (:func:`excess`).
         ref: The tightest solution's costs ``(L,)``.
+        stop_when_ahead: ``False`` counts every level (for a peer that solves another
+            problem, e.g. DAQP's hierarchy: its lower costs below a level where it is ahead
+            are not bought by rounding).
 
     Returns:
         ``max_k ex_k / max(1, ref_k)`` over the levels ``k`` down to the first level where the
@@ -118,7 +122,7 @@ def relative_excess(ex: np.ndarray, ref: np.ndarray) -> float:
         return 0.0
     rel = ex / np.maximum(1.0, np.abs(ref))
     stop = ex.size
-    for k in range(ex.size):
+    for k in range(ex.size if stop_when_ahead else 0):
         r_ref = math.sqrt(max(float(ref[k]), 0.0))
         r_own = math.sqrt(max(float(ref[k] + ex[k]), 0.0))
         if r_own < r_ref - TIE_RTOL * max(1.0, r_ref):
@@ -132,7 +136,8 @@ class ExcessTracker:
 
     Per step, :meth:`add` picks the tightest of the contract's solutions and records, per
     solver, the excess on each level (largest over the steps: ``level``) and the contract
-    excess of :func:`relative_excess` (largest over the steps: ``contract``).
+    excess of :func:`relative_excess` (largest over the steps: ``contract``; every level
+    counted for solvers outside the contract's set).
     """
 
     def __init__(self) -> None:
@@ -152,5 +157,5 @@ class ExcessTracker:
         self.ref_max = ref.copy() if self.ref_max is None else np.maximum(self.ref_max, ref)
         for name, ex in excess(costs, contract).items():
             self.level[name] = ex if name not in self.level else np.maximum(self.level[name], ex)
-            rel = relative_excess(ex, ref)
+            rel = relative_excess(ex, ref, stop_when_ahead=name in contract)
             self.contract[name] = max(self.contract.get(name, -math.inf), rel)
