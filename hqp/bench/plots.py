@@ -75,8 +75,10 @@ def write_suite_plots(result: dict[str, Any], directory: str | Path) -> list[Pat
                 ax.plot(range(L), worst, marker="o", label=solver)
             ax.set_yscale("symlog", linthresh=1e-12)
             ax.set_xlabel("level (0 = highest priority)")
-            ax.set_ylabel("excess cost over the tightest solution")
-            ax.set_title(f"hqp bench --suite {suite}: per-level accuracy (worst case)")
+            ax.set_ylabel("absolute excess cost over the tightest solution")
+            ax.set_title(f"hqp bench --suite {suite}: per-level accuracy (worst case)\n"
+                         "absolute (low levels cost up to 1e6; contract measure: cost_excess, "
+                         "relative)", fontsize=9)
             ax.legend(fontsize=6, ncol=2)
             fig.tight_layout()
             path = out / f"bench_{suite}_accuracy.png"
