@@ -143,7 +143,6 @@ class ExcessTracker:
     def __init__(self) -> None:
         self.level: dict[str, np.ndarray] = {}
         self.contract: dict[str, float] = {}
-        self.ref_max: np.ndarray | None = None
 
     def add(self, costs: Mapping[str, np.ndarray], contract: Mapping[str, np.ndarray]) -> None:
         """Record one step.
@@ -154,7 +153,6 @@ class ExcessTracker:
 
         """
         ref = tightest(contract)
-        self.ref_max = ref.copy() if self.ref_max is None else np.maximum(self.ref_max, ref)
         for name, ex in excess(costs, contract).items():
             self.level[name] = ex if name not in self.level else np.maximum(self.level[name], ex)
             rel = relative_excess(ex, ref, stop_when_ahead=name in contract)

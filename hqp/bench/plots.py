@@ -77,8 +77,8 @@ def write_suite_plots(result: dict[str, Any], directory: str | Path) -> list[Pat
             ax.set_xlabel("level (0 = highest priority)")
             ax.set_ylabel("absolute excess cost over the tightest solution")
             ax.set_title(f"hqp bench --suite {suite}: per-level accuracy (worst case)\n"
-                         "absolute (low levels cost up to 1e6; contract measure: cost_excess, "
-                         "relative)", fontsize=9)
+                         "absolute excess; the contract measure is the relative cost_excess",
+                         fontsize=9)
             ax.legend(fontsize=6, ncol=2)
             fig.tight_layout()
             path = out / f"bench_{suite}_accuracy.png"
