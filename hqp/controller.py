@@ -823,17 +823,18 @@ def standing_stack(
     angular_momentum_weight: float = 1e-3,
     angular_momentum_gain: float = 10.0,
     ramp_time: float = 0.6,
+    max_joint_acceleration: float = 50.0,
 ) -> tuple[Stack, list[Task]]:
     """Build the stack of a humanoid standing on both feet, and its contacts.
 
     Levels (default categories): physics (floating-base dynamics, both soles as rigid surface
     contacts); contact and actuation limits (friction pyramids, unilateral forces, centre of
     pressure in the soles, yaw torques, torque limits); viable joint limits (acceleration bound:
-    the fixed-base torque estimate clipped to [5, 50] rad/s^2; braking: what the support allows,
-    see the comments below); balance (centre of mass over the centre of the feet at its standing
-    height, and, weighted in the same level, damping of the centroidal angular momentum);
-    operational (trunk orientation upright as in the standing configuration); posture (the
-    standing configuration).
+    the fixed-base torque estimate clipped to [5, 50] rad/s^2 by default; braking: what the
+    supports allow, see the comments below); balance (centre of mass over the centre of the
+    feet at its standing height, and, weighted in the same level, damping of the centroidal
+    angular momentum); operational (trunk orientation upright as in the standing
+    configuration); posture (the standing configuration).
 
     The angular-momentum damping matters when the centre-of-mass task asks for more than the
     support gives (a goal moved faster than the centre of pressure can follow): the centre of
@@ -860,11 +861,15 @@ def standing_stack(
         ramp_time: Default ramp of tasks added at runtime [s] (goal ramps from zero error; a
             min-jerk goal move of ``d`` over ``T`` asks for a peak feed-forward acceleration
             of ``5.8 d / T^2``).
+        max_joint_acceleration: Upper clip of the joint-acceleration bound [rad/s^2] (>= 5;
+            the bound is the fixed-base torque estimate clipped to ``[5, this]``; the
+            braking assumption is half of it, or what the active supports allow).
 
     Returns:
         ``(stack, contacts)``; pass both to :class:`WholeBodyController`.
 
     """
+    from hqp.errors import InvalidGain
     from hqp.layout import ContactType
     from hqp.stack import Stack
     from hqp.tasks.base import Category
@@ -872,11 +877,18 @@ def standing_stack(
     from hqp.tasks.com import CoMTask, support_center
     from hqp.tasks.contact import Contact
     from hqp.tasks.dynamics import FloatingBaseDynamics
-    from hqp.tasks.joint_limits import JointLimits, max_acceleration_from_torques
+    from hqp.tasks.joint_limits import (
+        JointLimits,
+        SupportBraking,
+        max_acceleration_from_torques,
+    )
     from hqp.tasks.orientation import OrientationTask
     from hqp.tasks.posture import PostureTask
     from hqp.tasks.torque_limits import TorqueLimits
 
+    if not (np.isfinite(max_joint_acceleration) and max_joint_acceleration >= 5.0):
+        raise InvalidGain(f"standing_stack: max_joint_acceleration must be finite and >= 5 "
+                          f"rad/s^2, got {max_joint_acceleration}")
     model.update(robot.q_standing, np.zeros(model.nv))
     stack = Stack(ramp_time=ramp_time)
     stack.add(FloatingBaseDynamics())
@@ -901,11 +913,15 @@ def standing_stack(
     # assumption it only caps the velocity toward a limit at sqrt(2 A d). Where the estimate
     # is zero (g1's ankle roll: its torque limit cannot hold the whole body on one ankle, a
     # case the rigid side-about-the-axis model does not describe in double support), half the
-    # bound is kept.
-    qdd_max = np.clip(max_acceleration_from_torques(model, margin=0.5), 5.0, 50.0)
-    support = max_acceleration_from_torques(
-        model, margin=0.5, supports=[robot.contact(foot).frame for foot in robot.feet])
-    braking = np.where(support > 0.0, np.minimum(0.5 * qdd_max, support), 0.5 * qdd_max)
+    # bound is kept. With no contact at all (a jump's flight) the legs brake themselves, not
+    # the body (paper-humanoid's knee: 5.8 rad/s^2 standing, 25 in the air): SupportBraking,
+    # all-or-none. Per contact, a swing leg would get its free-limb value too; measured on
+    # `walk`, that made the swing legs approach their limits faster and the walk worse (a
+    # 198 N m torque step, a safe-mode step, torques clipped by 0.01 N m): not kept.
+    qdd_max = np.clip(max_acceleration_from_torques(model, margin=0.5), 5.0,
+                      max_joint_acceleration)
+    braking = SupportBraking(model, [robot.contact(foot).frame for foot in robot.feet],
+                             0.5 * qdd_max, margin=0.5, per_contact=False)
     # Velocity bounds approached over 20 ms rather than in one step (no torque step when a
     # joint reaches its velocity limit).
     stack.add(JointLimits(qdd_max=qdd_max, braking=braking, reserve=2.0, velocity_time=0.02))

@@ -575,7 +575,11 @@ class Stack:
             [] for _ in range(self.n_levels)
         ]
         self._contact_rows(model, layout, t, x_prev, per_level)
+        active_frames = tuple(c.frame for c in self._contacts.values()
+                              if c.mode is not ContactMode.INACTIVE)
         for entry in self._tasks:
+            if entry.task.contact_aware:
+                entry.task.set_active_contacts(active_frames)  # type: ignore[attr-defined]
             if entry.contact is not None and (
                 self._contacts[entry.contact].mode is ContactMode.INACTIVE
                 and not self._self_managed(entry.contact)

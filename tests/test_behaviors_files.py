@@ -106,6 +106,11 @@ def test_library_files_parse(name: str) -> None:
         ("[phases.b]", "[phases.b]\nsafety = \"nowhere\"",
          ["phases.b.safety", "missing phase 'nowhere'"]),
         ('name = "tiny"', 'name = "tiny', ["not valid TOML", "line 2"]),
+        ("[phases.b]", "[phases.b]\njoint_braking = \"flying\"",
+         ["phases.b.joint_braking", "expected \"contacts\" or \"airborne\"", "'flying'"]),
+        ("[phases.b]", "[phases.b]\nblend_time = -0.1", ["phases.b.blend_time", "non-negative"]),
+        ('initial = "a"', 'initial = "a"\nmax_joint_acceleration = 2.0',
+         ["behavior.max_joint_acceleration", "at least 5 rad/s^2"]),
     ],
 )
 def test_bad_files_name_file_key_and_expectation(
@@ -120,6 +125,15 @@ def test_bad_files_name_file_key_and_expectation(
     for fragment in fragments:
         assert fragment in message, message
     assert isinstance(info.value, HQPError) and isinstance(info.value, ValueError)
+
+
+def test_phase_controller_options_parse(tmp_path: Path) -> None:
+    text = GOOD.replace('initial = "a"', 'initial = "a"\nmax_joint_acceleration = 150.0', 1)
+    text = text.replace("[phases.b]", '[phases.b]\njoint_braking = "airborne"\nblend_time = 0.0')
+    spec = load(tmp_path, text)
+    assert spec.max_joint_acceleration == 150.0
+    assert spec.phases["a"].joint_braking == "contacts" and spec.phases["a"].blend_time is None
+    assert spec.phases["b"].joint_braking == "airborne" and spec.phases["b"].blend_time == 0.0
 
 
 def test_unreachable_phase_is_an_error(tmp_path: Path) -> None:

@@ -203,6 +203,52 @@ def test_contacts_are_unloaded_when_a_phase_releases_them(setup):
     assert "hip" not in ctrl.stack
 
 
+def test_phase_sets_the_blend_time_and_the_joint_limit_braking(tmp_path: Path) -> None:
+    """A phase's ``blend_time`` and ``joint_braking = "airborne"`` reach the controller while
+    it is active; the next phase restores the controller's blend time and contact braking."""
+    from hqp.tasks.joint_limits import JointLimits, SupportBraking
+
+    text = TEXT.replace('contacts = ["left_foot"]\nfinal = true',
+                        'contacts = ["left_foot"]\nblend_time = 0.0\njoint_braking = "airborne"'
+                        '\ntransitions = [{ to = "safe", when = "phase_time >= 0.1" }]')
+    robot = robots.load("paper-humanoid")
+    model = robot.model()
+    path = tmp_path / "machine.toml"
+    path.write_text(text)
+    spec = load_behavior(path, frames=model.frame_names, joints=model.joint_names,
+                         contacts=["left_foot", "right_foot"])
+    assert spec.phases["lift"].joint_braking == "airborne"
+    ctrl = StubController(model)
+    limits = JointLimits(qdd_max=50.0, braking=SupportBraking(model, ["left_foot"], 25.0,
+                                                              q=robot.q_standing))
+    ctrl.stack.add(limits)
+    default_blend = ctrl.stack.blend_time
+    factory = TaskFactory(model, {"left_foot": "left_foot", "right_foot": "right_foot"},
+                          robot.q_standing)
+    behavior = Behavior(spec, ctrl, factory, standing=robot.q_standing, safety_steps=3)
+    state = RobotState(q=robot.q_standing.copy(), v=np.zeros(model.nv), t=0.0,
+                       contacts={"left_foot": True, "right_foot": True})
+    behavior.start(state, 0.0)
+    behavior.update(state, 0.5, None)
+    behavior._enter("lift", state, 0.6)
+    assert ctrl.stack.blend_time == 0.0 and limits.airborne_braking
+    behavior.update(state, 0.8, None)
+    assert behavior.phase is behavior.Phase.SAFE
+    assert ctrl.stack.blend_time == default_blend and not limits.airborne_braking
+
+
+def test_behavior_file_sets_the_joint_acceleration_clip() -> None:
+    from hqp.behaviors.runner import build_controller
+    from hqp.tasks.joint_limits import JointLimits
+
+    robot = robots.load("paper-humanoid")
+    for clip in (None, 200.0):
+        ctrl = build_controller(robot, "hqp", max_joint_acceleration=clip)
+        limits = next(t for t in ctrl.stack.tasks if isinstance(t, JointLimits))
+        top = limits.max_acceleration(ctrl.model).max()
+        assert top == (50.0 if clip is None else 200.0)
+
+
 def test_behavior_controllers_hold_only_the_constraint_levels() -> None:
     # The standing stack's own tasks (CoM, trunk, posture and the angular-momentum damping of
     # its balance level) are removed: left in, the damping sat strictly above the walk's

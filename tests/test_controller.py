@@ -257,3 +257,36 @@ def test_bad_arguments():
     c = WholeBodyController(m)
     with pytest.raises(InvalidInput):
         c.step(RobotState(q[:-1], np.zeros(m.nv)), 0.0)
+
+
+def test_joint_limit_braking_follows_the_contacts_of_the_standing_stack():
+    """paper-humanoid: the knees brake the body about the soles while a foot holds (a few
+    rad/s^2, in single support too: all-or-none), the shanks alone with no contact (half the
+    acceleration bound)."""
+    from hqp import robots
+    from hqp.controller import standing_controller
+    from hqp.tasks.joint_limits import JointLimits
+
+    robot = robots.load("paper-humanoid")
+    c = standing_controller(robot, diagnostics="residuals")
+    limits = next(t for t in c.stack.tasks if isinstance(t, JointLimits))
+    m = c.model
+    left, right = m.joint_index("left_knee"), m.joint_index("right_knee")
+    state = RobotState(robot.q_standing, np.zeros(m.nv))
+    c.step(state, 0.0)
+    both = limits.braking_deceleration(m)
+    assert both[left] < 10.0 and both[right] < 10.0
+    c.deactivate_contact("left_foot", t=0.0, unload_time=0.0)
+    c.step(state, DT)
+    np.testing.assert_allclose(limits.braking_deceleration(m), both)  # single support
+    c.deactivate_contact("right_foot", t=DT, unload_time=0.0)
+    c.step(state, 1.5 * DT)
+    none = limits.braking_deceleration(m)
+    np.testing.assert_allclose(none[[left, right]],
+                               0.5 * limits.max_acceleration(m)[[left, right]])
+    assert none[left] > 2.0 * both[left]
+    c.activate_contact("left_foot", t=2 * DT)
+    c.step(state, 2 * DT)  # starts the torque blend, which also builds without the contact
+    c.step(state, 3 * DT + c.stack.blend_time)  # ends the blend
+    c.step(state, 4 * DT + c.stack.blend_time)
+    np.testing.assert_allclose(limits.braking_deceleration(m), both)

@@ -11,7 +11,7 @@ from hqp.layout import Layout
 from hqp.model import RobotModel
 from hqp.tasks.base import Category
 from hqp.tasks.joint_limit_zone import JointLimitZone
-from hqp.tasks.joint_limits import JointLimits, max_acceleration_from_torques
+from hqp.tasks.joint_limits import JointLimits, SupportBraking, max_acceleration_from_torques
 
 DT = 1e-3
 V_MAX = 1.0
@@ -355,3 +355,40 @@ def test_return_from_past_a_limit_uses_the_velocity_time_constant(arm: RobotMode
     np.testing.assert_allclose(lb[1], (v_r - 0.12) / 0.02, rtol=1e-9)  # 1.07 rad/s^2
     lb, _ = JointLimits(qdd_max=50.0, braking=B, reserve=2.0).bounds(arm, DT)
     np.testing.assert_allclose(lb[1], 2.0 * B)  # (v_r - v) / dt = 21 rad/s^2, clipped
+
+
+def test_support_braking_follows_the_active_contacts(humanoid: RobotModel) -> None:
+    """One braking per set of held frames, each equal to the direct estimate; the task follows
+    the frames the stack reports, and ``airborne`` takes the free-limb values."""
+    feet = ["rleg_effector_body", "lleg_effector_body"]
+    q = humanoid.neutral()
+    base = np.full(humanoid.na, 30.0)
+    table = SupportBraking(humanoid, feet, base, margin=0.5, q=q)
+    assert len(table.table) == 4
+    np.testing.assert_array_equal(table(()), base)
+    humanoid.update(q, np.zeros(humanoid.nv))
+    for held in ([feet[0]], [feet[1]], feet):
+        support = max_acceleration_from_torques(humanoid, 0.5, supports=held)
+        expected = np.where(support > 0.0, np.minimum(base, support), base)
+        np.testing.assert_allclose(table(held), expected, rtol=1e-12)
+        np.testing.assert_allclose(table([*held, "some_other_frame"]), expected, rtol=1e-12)
+    knee = humanoid.joint_index("rleg_elbow_joint")  # the sample humanoid's right knee
+    # held: the knee moves the body about the sole; its foot in the air: the shank alone
+    assert table([feet[0]])[knee] < 0.5 * table([feet[1]])[knee]
+
+    coarse = SupportBraking(humanoid, feet, base, margin=0.5, q=q, per_contact=False)
+    assert len(coarse.table) == 2
+    np.testing.assert_array_equal(coarse([feet[0]]), table(feet))  # any contact: all held
+    np.testing.assert_array_equal(coarse(()), base)
+
+    task = JointLimits(qdd_max=60.0, braking=table)
+    for held in ((), (feet[0],), tuple(feet)):
+        task.set_active_contacts(held)
+        np.testing.assert_allclose(task.braking_deceleration(humanoid),
+                                   np.minimum(table(held), 60.0))
+    task.set_airborne_braking(True)  # a take-off: the supports are ignored
+    np.testing.assert_allclose(task.braking_deceleration(humanoid), np.minimum(base, 60.0))
+    with pytest.raises(HQPError, match="base must be > 0"):
+        SupportBraking(humanoid, feet, 0.0)
+    with pytest.raises(HQPError, match="unknown frame 'sole'"):
+        SupportBraking(humanoid, ["sole"], 1.0)

@@ -119,6 +119,7 @@ class Behavior:
                                     f"of type {spec.planner.type!r}")
         self.spec = spec
         self.controller = controller
+        self._default_blend_time = float(controller.stack.blend_time)
         self.factory = factory
         self.inputs = inputs if inputs is not None else InputStream(spec.inputs)
         self.planner = planner
@@ -264,6 +265,11 @@ class Behavior:
         for c in new.contacts:
             if c not in active:
                 ctrl.activate_contact(c, t=t)
+        ctrl.stack.blend_time = (new.blend_time if new.blend_time is not None
+                                 else self._default_blend_time)
+        for task in ctrl.stack.tasks:
+            if hasattr(task, "set_airborne_braking"):
+                task.set_airborne_braking(new.joint_braking == "airborne")
         unload = new.unload_time if new.unload_time is not None else self.spec.unload_time
         for c in sorted(active - set(new.contacts)):
             ctrl.deactivate_contact(c, t=t, unload_time=unload)

@@ -174,14 +174,16 @@ def parse_behavior(
         [behavior]      name, description, initial (phase), duration [s], robot,
                         ramp_time [s], unload_time [s], safety (default safety phase),
                         inputs_file (default inputs, relative to the file),
-                        backend (QP backend of the HQP controller)
+                        backend (QP backend of the HQP controller),
+                        max_joint_acceleration [rad/s^2] (HQP joint-acceleration clip)
         [contacts]      optional: contact name = frame (default: the robot's contacts)
         [inputs.NAME]   shape, default, interpolate, description   -> input.NAME
         [tasks.NAME]    type, level (int or category), weight, then the type's
                         frames, goals (numbers or expressions) and parameters
         [actions.NAME]  tasks = [...], levels = {task = level}      (action primitives)
         [phases.NAME]   action or tasks, contacts, goals = {task = expr},
-                        final, safety, watch, ramp_time,
+                        final, safety, watch, ramp_time, unload_time, blend_time [s],
+                        joint_braking ("contacts" or "airborne"),
                         [[phases.NAME.transitions]] to, when
         [poses.NAME]    joint = position [rad], ...   -> pose.NAME (captured poses)
         [planner]       type = "placo_walk", then the planner's parameters -> plan.*
@@ -201,7 +203,7 @@ def parse_behavior(
     head = _table(ctx, data, ("behavior",), required=True)
     _check_keys(ctx, head, ("behavior",), {
         "name", "description", "initial", "duration", "robot", "ramp_time", "unload_time",
-        "safety", "inputs_file", "backend",
+        "safety", "inputs_file", "backend", "max_joint_acceleration",
     })
     name = _get(ctx, head, ("behavior", "name"), str, default=path.stem if path else "behavior")
     description = _get(ctx, head, ("behavior", "description"), str, default="")
@@ -213,6 +215,12 @@ def parse_behavior(
     default_safety = _get(ctx, head, ("behavior", "safety"), str, default=None)
     inputs_file = _get(ctx, head, ("behavior", "inputs_file"), str, default=None)
     backend = _get(ctx, head, ("behavior", "backend"), str, default=None)
+    max_qdd = None
+    if "max_joint_acceleration" in head:
+        max_qdd = _positive(ctx, head, ("behavior", "max_joint_acceleration"), 50.0)
+        if max_qdd < 5.0:
+            raise ctx.error(("behavior", "max_joint_acceleration"),
+                            f"expected at least 5 rad/s^2, got {max_qdd}")
     if backend is not None:
         from hqp.solver.backend import known_backends
 
@@ -358,7 +366,7 @@ def parse_behavior(
         name=name, description=description, initial=initial, phases=phases, tasks=tasks,
         inputs=inputs, planner=planner, duration=duration, robot=robot, ramp_time=ramp_time,
         unload_time=unload_time, path=path, contact_frames=contact_frames, poses=poses,
-        inputs_file=inputs_path, backend=backend,
+        inputs_file=inputs_path, backend=backend, max_joint_acceleration=max_qdd,
     )
 
 
@@ -556,7 +564,8 @@ def _phase(ctx: _Ctx, env: _NameCheck, pname: str, ptab: Any, tasks: Mapping[str
     if not isinstance(ptab, dict):
         raise ctx.error(key, "expected a table")
     _check_keys(ctx, ptab, key, {"action", "tasks", "contacts", "goals", "final", "safety",
-                                 "watch", "ramp_time", "unload_time", "transitions", "levels"})
+                                 "watch", "ramp_time", "unload_time", "blend_time",
+                                 "joint_braking", "transitions", "levels"})
     if ("action" in ptab) == ("tasks" in ptab):
         raise ctx.error(key, "expected exactly one of 'action' (an [actions] name) or 'tasks'")
     if "action" in ptab:
@@ -620,6 +629,13 @@ def _phase(ctx: _Ctx, env: _NameCheck, pname: str, ptab: Any, tasks: Mapping[str
     unload_time = ptab.get("unload_time")
     if unload_time is not None:
         unload_time = _positive(ctx, ptab, (*key, "unload_time"), 0.0, allow_zero=True)
+    blend_time = ptab.get("blend_time")
+    if blend_time is not None:
+        blend_time = _positive(ctx, ptab, (*key, "blend_time"), 0.0, allow_zero=True)
+    joint_braking = _get(ctx, ptab, (*key, "joint_braking"), str, default="contacts")
+    if joint_braking not in ("contacts", "airborne"):
+        raise ctx.error((*key, "joint_braking"), f"expected \"contacts\" or \"airborne\", "
+                        f"got {joint_braking!r}")
     transitions = []
     raw = _get(ctx, ptab, (*key, "transitions"), list, default=[])
     for i, tr in enumerate(raw):
@@ -638,4 +654,4 @@ def _phase(ctx: _Ctx, env: _NameCheck, pname: str, ptab: Any, tasks: Mapping[str
         raise ctx.error(key, "phase has no exit: expected [[phases."
                         f"{pname}.transitions]] (to, when) or final = true")
     return PhaseSpec(pname, action, phase_contacts, tuple(transitions), goals, final, safety,
-                     watch, ramp_time, unload_time)
+                     watch, ramp_time, unload_time, blend_time, joint_braking)

@@ -12,7 +12,8 @@ Measured and reported (the JSON of ``hqp run --json``): whether the robot fell
 (pelvis below 0.6 of its standing height, or anything but a foot touching the
 floor), the phases visited, the footsteps completed (a swing foot out of contact
 for at least 0.1 s that lands at least 0.10 m ahead of where it lifted), the
-feasibility events, the longest flight (no foot in contact), the largest ratio of
+feasibility events, the longest flight (no foot in contact) and the highest the lower
+foot site rose during flights (``flight_clearance_m``), the largest ratio of
 a commanded torque to its limit, and for planned behaviors the mean forward speed
 and the largest horizontal centre-of-mass tracking error.
 """
@@ -73,7 +74,12 @@ class FootTracker:
 
 
 def build_controller(
-    robot: Any, controller: str, *, diagnostics: str = "residuals", backend: str | None = None
+    robot: Any,
+    controller: str,
+    *,
+    diagnostics: str = "residuals",
+    backend: str | None = None,
+    max_joint_acceleration: float | None = None,
 ) -> Any:
     """Build a whole-body controller holding only the constraint levels of ARCHITECTURE.md.
 
@@ -88,6 +94,8 @@ def build_controller(
         controller: ``"hqp"`` or ``"nullspace"``.
         diagnostics: ``"residuals"`` (per-task residuals, cheap) or ``"full"``.
         backend: QP backend of the HQP controller (``None``: its default).
+        max_joint_acceleration: Clip of the HQP controller's joint-acceleration bounds
+            [rad/s^2] (``None``: its default; the null-space law has activation zones instead).
 
     Raises:
         UnknownName: Unknown controller.
@@ -103,7 +111,9 @@ def build_controller(
     if controller == "hqp":
         from hqp.controller import standing_controller
 
-        kwargs = {} if backend is None else {"backend": backend}
+        kwargs: dict[str, Any] = {} if backend is None else {"backend": backend}
+        if max_joint_acceleration is not None:
+            kwargs["max_joint_acceleration"] = max_joint_acceleration
         ctrl = standing_controller(robot, diagnostics=diagnostics, **kwargs)
     else:
         from hqp.nullspace import standing_nullspace_controller
@@ -180,7 +190,8 @@ def prepare(
     spec = source if isinstance(source, BehaviorSpec) else load_behavior(source)
     robot_obj = robots.load(robot or spec.robot)
     ctrl = build_controller(robot_obj, controller,
-                            backend=backend if backend is not None else spec.backend)
+                            backend=backend if backend is not None else spec.backend,
+                            max_joint_acceleration=spec.max_joint_acceleration)
     model = ctrl.model
     contacts = _contacts_of(spec, robot_obj)
     declared = set(ctrl.stack.contacts)
@@ -267,6 +278,7 @@ def run_behavior(
     clipped = 0
     fell, reason = False, None
     flight, flight_start, max_flight = False, 0.0, 0.0
+    clearance = 0.0  # highest height of the lower foot while no foot touches [m]
     com_err_max = 0.0
     com_err_t = None
     pelvis_min = np.inf
@@ -307,6 +319,8 @@ def run_behavior(
         elif not airborne and flight:
             flight = False
             max_flight = max(max_flight, (k + 1) * dt - flight_start)
+        if airborne:
+            clearance = max(clearance, float(np.min(reading.foot_position[:, 2])))
         if behavior.planner is not None and behavior.planner.trajectory is not None:
             plan = behavior.planner.outputs(t)
             if plan["started"] and not plan["done"]:
@@ -338,6 +352,7 @@ def run_behavior(
         "sim_clipped_torques": int(sim.clip_count),
         "safe_mode_steps": safe_steps,
         "flight_time_s": round(max_flight, 4),
+        "flight_clearance_m": round(clearance, 4),
         "pelvis_min_m": round(float(pelvis_min), 4),
         "step_time_median_ms": round(1e3 * float(np.median(step_times)), 3) if step_times else 0,
         "backend": getattr(ctrl, "backend", None),

@@ -129,6 +129,12 @@ class PhaseSpec:
         ramp_time: Duration of the ramps of added tasks [s] (``None``: the behavior's).
         unload_time: Unloading time of the contacts it releases [s] (``None``: the
             behavior's).
+        blend_time: Torque interpolation after a change that cannot be ramped (a contact
+            made or released at once) while this phase is active [s] (``None``: the
+            controller's).
+        joint_braking: ``"contacts"`` (the joint-limit braking follows the active contacts)
+            or ``"airborne"`` (braking of a limb in the air: a take-off, whose legs brake
+            by leaving the floor).
 
     """
 
@@ -142,6 +148,8 @@ class PhaseSpec:
     watch: tuple[str, ...] = ()
     ramp_time: float | None = None
     unload_time: float | None = None
+    blend_time: float | None = None
+    joint_braking: str = "contacts"
 
 
 @dataclass(frozen=True)
@@ -181,6 +189,9 @@ class BehaviorSpec:
         inputs_file: Default inputs file (JSON Lines), used when none is given.
         backend: QP backend of the HQP controller running the behavior (``None``: the
             controller's default).
+        max_joint_acceleration: Upper clip of the HQP controller's joint-acceleration
+            bounds [rad/s^2] (``None``: the controller's default, see
+            :func:`hqp.controller.standing_stack`).
 
     """
 
@@ -200,6 +211,7 @@ class BehaviorSpec:
     poses: Mapping[str, Mapping[str, float]] = field(default_factory=dict)
     inputs_file: Path | None = None
     backend: str | None = None
+    max_joint_acceleration: float | None = None
 
     def phase_enum(self) -> type[enum.Enum]:
         """Return an :class:`enum.Enum` of the phases (values: the phase names, in file order)."""

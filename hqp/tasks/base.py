@@ -149,6 +149,9 @@ class Task(abc.ABC):
     category: Category = Category.OPERATIONAL
     """Default category (level) of the primitive."""
 
+    contact_aware: bool = False
+    """Whether the stack calls ``set_active_contacts(frames)`` before every :meth:`rows`."""
+
     def __init__(self, name: str, weight: float = 1.0) -> None:
         from hqp.errors import InvalidGain
 

@@ -233,6 +233,83 @@ def _upper_bounds(
     return bound
 
 
+class SupportBraking:
+    """Braking decelerations of the viability bound that follow the active contacts.
+
+    A joint between the floating base and a held frame (an ankle, a knee of a leg standing on
+    its sole) moves the rest of the body about that support when it brakes, which its torque
+    limit does far more slowly than it moves the distal limb once the foot is in the air (the
+    knee of paper-humanoid: about 6 rad/s^2 on the floor, 25 in the air). A constant braking
+    assumption must take the support value, which then also caps the joint's velocity toward
+    a limit in the air: a swing leg or a jumping robot cannot extend its knee faster than
+    ``sqrt(2 A d)``. This table holds, for every subset of the contact frames, the braking
+    ``min(base, support estimate)`` computed once at a nominal configuration (where the
+    support estimate is zero, i.e. the joint's torque limit cannot hold the side it moves in
+    the rigid model, ``base`` is kept, as :func:`hqp.controller.standing_stack` does); the
+    stack tells :class:`JointLimits` which contacts are active at every step (released contacts
+    do not hold, unloading ones still do). The viability argument of the bound assumes a
+    constant ``A``; here ``A`` changes only when a contact is made or released, and a release
+    only raises it.
+
+    With ``per_contact=False`` there are two values only: all frames held (whenever any
+    contact is active) and none (no contact: a robot in the air). A walking robot then keeps
+    the double-support braking on its swing leg (see :func:`hqp.controller.standing_stack`).
+
+    Args:
+        model: Robot model; updated to ``q`` (then left there).
+        frames: The contact frames that may hold the robot (at most 8).
+        base: Braking without supports ``(na,)`` or scalar [rad/s^2] (> 0).
+        margin: Fraction of the support estimate kept, in ``(0, 1]``.
+        q: Nominal configuration ``(nq,)`` (``None``: the model's current one).
+        per_contact: One value per subset of active frames (``True``), or all-or-none.
+
+    Raises:
+        InvalidGain: Non-positive ``base``, bad ``margin``, more than 8 frames.
+        InvalidFrame: A frame that is not in the model.
+
+    """
+
+    def __init__(
+        self,
+        model: RobotModel,
+        frames: Sequence[str],
+        base: np.ndarray | float,
+        *,
+        margin: float = 0.5,
+        q: np.ndarray | None = None,
+        per_contact: bool = True,
+    ) -> None:
+        frames = tuple(frames)
+        if len(frames) > 8:
+            raise InvalidGain(f"SupportBraking: at most 8 contact frames, got {len(frames)}")
+        base_arr = check_array(np.atleast_1d(base), (None,), "SupportBraking: base",
+                               allow_inf=True)
+        if np.any(base_arr <= 0) or base_arr.size not in (1, model.na):
+            raise InvalidGain(f"SupportBraking: base must be > 0 with 1 or {model.na} entries")
+        base_arr = np.broadcast_to(base_arr, (model.na,)).astype(float)
+        if q is not None:
+            model.update(q, np.zeros(model.nv))
+        self.frames = frames
+        self.per_contact = bool(per_contact)
+        self.table: dict[frozenset[str], np.ndarray] = {}
+        masks = range(1 << len(frames)) if per_contact else (0, (1 << len(frames)) - 1)
+        for mask in masks:
+            held = [f for k, f in enumerate(frames) if mask >> k & 1]
+            if not held:
+                self.table[frozenset()] = base_arr.copy()
+                continue
+            support = max_acceleration_from_torques(model, margin=margin, supports=held)
+            self.table[frozenset(held)] = np.where(support > 0.0,
+                                                   np.minimum(base_arr, support), base_arr)
+
+    def __call__(self, active: Sequence[str]) -> np.ndarray:
+        """Braking ``(na,)`` with the contact frames ``active`` holding (others ignored)."""
+        held = frozenset(active).intersection(self.frames)
+        if not self.per_contact and held:
+            held = frozenset(self.frames)
+        return self.table[held]
+
+
 class JointLimits(Task):
     """Viable position, velocity and acceleration bounds on ``qdd`` (JOINT_LIMITS).
 
@@ -247,7 +324,8 @@ class JointLimits(Task):
             ``supports``.
         braking: Deceleration ``A`` assumed by the viability bound, per actuated
             joint ``(na,)`` or a scalar [rad/s^2] (> 0, ``inf`` allowed); taken
-            as ``min(braking, A_max)``. ``None``: ``A_max``.
+            as ``min(braking, A_max)``. ``None``: ``A_max``. A :class:`SupportBraking`:
+            the value for the contacts active at the step (the stack reports them).
         velocity_time: Time constant ``T_v`` of the velocity bound [s] (>= 0;
             ``dt`` when smaller), see the module docstring.
         reserve: Factor (>= 1, ``inf`` allowed) on the braking deceleration: the
@@ -273,13 +351,14 @@ class JointLimits(Task):
     """
 
     category = Category.JOINT_LIMITS
+    contact_aware = True
 
     def __init__(
         self,
         name: str = "joint_limits",
         qdd_max: np.ndarray | float | None = None,
         *,
-        braking: np.ndarray | float | None = None,
+        braking: np.ndarray | float | SupportBraking | None = None,
         reserve: float = np.inf,
         velocity_time: float = 0.0,
         margin: float = 0.5,
@@ -299,7 +378,12 @@ class JointLimits(Task):
                 raise InvalidGain(f"{w}: qdd_max must be > 0, got {arr}")
             self.qdd_max = arr
         self.braking: np.ndarray | None = None
-        if braking is not None:
+        self.support_braking: SupportBraking | None = None
+        self._active_frames: tuple[str, ...] = ()
+        self.airborne_braking = False
+        if isinstance(braking, SupportBraking):
+            self.support_braking = braking
+        elif braking is not None:
             arr = check_array(np.atleast_1d(braking), (None,), f"{w}: braking", allow_inf=True)
             if np.any(arr <= 0):
                 raise InvalidGain(f"{w}: braking must be > 0, got {arr}")
@@ -350,6 +434,12 @@ class JointLimits(Task):
 
         """
         A = self.max_acceleration(state)
+        if self.support_braking is not None:
+            braking = self.support_braking(() if self.airborne_braking else self._active_frames)
+            if braking.size != state.na:
+                raise InvalidGain(f"{self.where()}: braking has {braking.size} entries, "
+                                  f"robot has {state.na} joints")
+            return np.minimum(braking, A)
         if self.braking is None:
             return A
         if self.braking.size not in (1, state.na):
@@ -358,6 +448,21 @@ class JointLimits(Task):
                 f"robot has {state.na} joints"
             )
         return np.minimum(np.broadcast_to(self.braking, (state.na,)), A)
+
+    def set_active_contacts(self, frames: Sequence[str]) -> None:
+        """Record the frames of the active contacts (called by the stack at every build)."""
+        self._active_frames = tuple(frames)
+
+    def set_airborne_braking(self, airborne: bool) -> None:
+        """Assume no support in the braking deceleration, whatever the active contacts.
+
+        For a take-off (a jump's push): a leg extending toward its limit on a unilateral
+        contact brakes by leaving the floor (the contact force falls to zero and the joint
+        then moves the limb alone), not by pulling the body down. Only meaningful with a
+        :class:`SupportBraking`; the behavior that asks for it must release the contacts
+        before the joint needs the braking (else it stops against the contacts' rows).
+        """
+        self.airborne_braking = bool(airborne)
 
     def bounds(self, state: RobotModel, dt: float) -> tuple[np.ndarray, np.ndarray]:
         """Acceleration bounds ``(lb, ub)``, each ``(na,)``, at ``state`` for the period ``dt``.
