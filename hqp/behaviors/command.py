@@ -12,7 +12,7 @@ def add_run_parser(subparsers: Any) -> argparse.ArgumentParser:
     """Add ``hqp run`` to the CLI's subparsers.
 
     ``hqp run BEHAVIOR [--robot] [--controller] [--backend] [--duration] [--inputs] [--set]
-    [--json] [--video]``.
+    [--json] [--video] [--plot]``.
     """
     p = subparsers.add_parser(
         "run", help="run a behavior (library name or .toml file) in MuJoCo",
@@ -32,6 +32,9 @@ def add_run_parser(subparsers: Any) -> argparse.ArgumentParser:
                    help="replace an input's default, e.g. --set takeoff_height=1.2")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     p.add_argument("--video", default=None, help="write an MP4 of the run")
+    p.add_argument("--plot", default=None,
+                   help="write a PNG of the run (CoG height and velocity, feet heights, "
+                        "normal forces, torque ratio; phase changes as vertical lines)")
     p.set_defaults(func=run_command)
     return p
 
@@ -72,7 +75,8 @@ def run_command(args: argparse.Namespace) -> int:
     with stdout_to_stderr() as out:
         result = run_behavior(args.behavior, robot=args.robot, controller=args.controller,
                               duration=args.duration, inputs=args.inputs, overrides=overrides,
-                              video=args.video, progress=progress, backend=args.backend)
+                              video=args.video, progress=progress, backend=args.backend,
+                              plot=args.plot)
         print(file=sys.stderr)
         data = result.as_json()
         if args.json:

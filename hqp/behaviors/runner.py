@@ -240,6 +240,7 @@ def run_behavior(
     stop_on_fall: bool = True,
     progress: Callable[[float, float], None] | None = None,
     backend: str | None = None,
+    plot: str | Path | None = None,
 ) -> RunResult:
     """Run a behavior in MuJoCo and measure it (see the module docstring).
 
@@ -255,6 +256,9 @@ def run_behavior(
         progress: Called as ``progress(t, duration)`` every 0.1 s of simulated time.
         backend: QP backend of the HQP controller (default: the behavior's, see
             :func:`prepare`).
+        plot: Write a PNG of the run here (centre-of-gravity height and vertical velocity,
+            feet heights, normal forces, largest torque ratio; phase changes as vertical
+            lines); its path is reported as ``plot`` in the metrics.
 
     Returns:
         The measurements.
@@ -287,6 +291,8 @@ def run_behavior(
     tau_prev, tau_jump, tau_jump_t = None, 0.0, None
     step_times = []
     renderer = _Renderer(sim, video) if video is not None else None
+    trace: dict[str, list[Any]] | None = (
+        None if plot is None else {"t": [], "com": [], "vz": [], "feet": [], "fn": [], "tau": []})
     t = 0.0
     k = 0
     for k in range(n):
@@ -321,6 +327,12 @@ def run_behavior(
             max_flight = max(max_flight, (k + 1) * dt - flight_start)
         if airborne:
             clearance = max(clearance, float(np.min(reading.foot_position[:, 2])))
+        if trace is not None:
+            for key, value in (("t", (k + 1) * dt), ("com", model.com[2]),
+                               ("vz", model.com_velocity[2]),
+                               ("feet", reading.foot_position[:, 2].copy()),
+                               ("fn", reading.normal_force.copy()), ("tau", ratio)):
+                trace[key].append(value)
         if behavior.planner is not None and behavior.planner.trajectory is not None:
             plan = behavior.planner.outputs(t)
             if plan["started"] and not plan["done"]:
@@ -370,11 +382,40 @@ def run_behavior(
         metrics["com_tracking_error_max_m"] = round(com_err_max, 4)
         metrics["com_tracking_error_max_t"] = None if com_err_t is None else round(com_err_t, 3)
     metrics.update(behavior.metrics())
+    if trace is not None and plot is not None:
+        metrics["plot"] = str(_plot_run(trace, metrics["phase_times"], list(trackers), plot,
+                                        f"{spec.name} on {robot_obj.name} ({controller})"))
     return RunResult(
         behavior=spec.name, robot=robot_obj.name, controller=controller, duration_s=t_end,
         fell=fell, fall_reason=reason, phases=list(behavior.visited), steps=steps,
         feasibility_events=[e.as_dict() for e in behavior.events], metrics=metrics,
     )
+
+
+def _plot_run(trace: dict[str, list[Any]], phases: list[dict[str, Any]], feet: list[str],
+              path: str | Path, title: str) -> Path:
+    """Draw the run's trace (see :func:`run_behavior`'s ``plot``)."""
+    from hqp.plots import Line, Panel, plot_panels
+
+    t = np.asarray(trace["t"])
+    events = tuple(float(p["t"]) for p in phases[1:])
+    feet_z = np.asarray(trace["feet"]).reshape(len(t), -1)
+    normal = np.asarray(trace["fn"]).reshape(len(t), -1)
+    panels = [
+        Panel("Centre of gravity height", "z [m]", t, (Line("CoG", np.asarray(trace["com"])),),
+              events),
+        Panel("Centre of gravity vertical velocity", "vz [m/s]", t,
+              (Line("CoG", np.asarray(trace["vz"])),), events),
+        Panel("Feet heights (MuJoCo sites)", "z [mm]", t,
+              tuple(Line(f, 1e3 * feet_z[:, i]) for i, f in enumerate(feet)), events),
+        Panel("Normal forces (MuJoCo)", "force [N]", t,
+              tuple(Line(f, normal[:, i]) for i, f in enumerate(feet)), events),
+        Panel("Largest torque / limit", "ratio", t,
+              (Line("max |tau| / tau_max", np.asarray(trace["tau"])),
+               Line("limit", np.ones_like(t), "dashed")), events),
+    ]
+    names = ", ".join(f"{p['phase']} {p['t']:g} s" for p in phases)
+    return plot_panels(panels, path, title=f"{title}\nphases: {names}")
 
 
 class _Renderer:
