@@ -390,5 +390,7 @@ def test_support_braking_follows_the_active_contacts(humanoid: RobotModel) -> No
     np.testing.assert_allclose(task.braking_deceleration(humanoid), np.minimum(base, 60.0))
     with pytest.raises(HQPError, match="base must be > 0"):
         SupportBraking(humanoid, feet, 0.0)
+    with pytest.raises(HQPError, match="margin must be in"):
+        SupportBraking(humanoid, [], 1.0, margin=0.0)
     with pytest.raises(HQPError, match="unknown frame 'sole'"):
         SupportBraking(humanoid, ["sole"], 1.0)

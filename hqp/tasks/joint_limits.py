@@ -280,6 +280,8 @@ class SupportBraking:
         per_contact: bool = True,
     ) -> None:
         frames = tuple(frames)
+        if not (0.0 < margin <= 1.0):
+            raise InvalidGain(f"SupportBraking: margin must be in (0, 1], got {margin}")
         if len(frames) > 8:
             raise InvalidGain(f"SupportBraking: at most 8 contact frames, got {len(frames)}")
         base_arr = check_array(np.atleast_1d(base), (None,), "SupportBraking: base",
