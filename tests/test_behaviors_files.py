@@ -154,6 +154,12 @@ def test_expressions_evaluate_and_reject() -> None:
     np.testing.assert_allclose(parse("com + [0, 0, -0.1]").evaluate(env), [0.1, 0.0, 0.8])
     assert parse("com.z < 0.95").evaluate(env) is True
     assert parse("norm([3, 4]) == 5").evaluate(env) is True
+    # min_jerk(u) = 10 u^3 - 15 u^4 + 6 u^5 of u clipped to [0, 1]
+    for u in (-0.5, 0.0, 0.25, 0.5, 0.75, 1.0, 3.0):
+        c = min(max(u, 0.0), 1.0)
+        expected = 10 * c**3 - 15 * c**4 + 6 * c**5
+        assert parse(f"min_jerk({u})").evaluate(env) == pytest.approx(expected, abs=1e-15)
+    assert parse("min_jerk(t / 3)").evaluate(env) == pytest.approx(0.5)
     for bad in ["open('x')", "t.__class__", "lambda: 1", "[x for x in t]", "a if"]:
         with pytest.raises(ExpressionError):
             parse(bad)

@@ -20,6 +20,8 @@ from typing import Any
 
 import numpy as np
 
+from hqp.stack import min_jerk
+
 _BINARY: dict[type, Callable[[Any, Any], Any]] = {
     ast.Add: operator.add,
     ast.Sub: operator.sub,
@@ -54,6 +56,7 @@ FUNCTIONS: dict[str, Callable[..., Any]] = {
     "clip": lambda x, lo, hi: np.clip(x, lo, hi),
     "all": lambda x: bool(np.all(x)),
     "any": lambda x: bool(np.any(x)),
+    "min_jerk": lambda u: min_jerk(float(u)),
 }
 """Functions callable from an expression."""
 
