@@ -117,7 +117,7 @@ def test_library_behavior_runs_without_falling(name: str) -> None:
 def test_squat_jump_flies_and_lands_standing(tmp_path: Path) -> None:
     # Measured (hqp run squat-jump --json, repeated: runs differ by ~1e-13 per step from the
     # first (BLAS rounding) and the landing amplifies it): contacts released at 0.30 m/s, both
-    # feet out of contact (MuJoCo's contacts) for 0.037-0.048 s with the lower sole 1.2-1.7
+    # feet out of contact (MuJoCo's contacts) for 0.038-0.046 s with the lower sole 1.2-1.6
     # mm up, landing at -0.2 to -0.3 m/s, pelvis at least 0.840 m (standing 0.863); torque
     # limits reached in the push and at the landing (ratio 1.0, never beyond: the
     # controller's own rows); push 5.5 and 6.5 m/s^2 and a far target also land standing.
