@@ -114,21 +114,28 @@ def report(statuses: dict[str, tuple[Feasibility, float, int | None]], levels) -
         for name, (status, residual, yields_to) in statuses.items()))
 
 
-@pytest.fixture()
-def setup(tmp_path: Path):
+def build(tmp_path: Path, text: str = TEXT, stack_tasks=()):
+    """The behavior of ``text`` on a stub controller holding ``stack_tasks``, and a state."""
     robot = robots.load("paper-humanoid")
     model = robot.model()
     path = tmp_path / "machine.toml"
-    path.write_text(TEXT)
+    path.write_text(text)
     spec = load_behavior(path, frames=model.frame_names, joints=model.joint_names,
                          contacts=["left_foot", "right_foot"])
     ctrl = StubController(model)
+    for task in stack_tasks:
+        ctrl.stack.add(task)
     factory = TaskFactory(model, {"left_foot": "left_foot", "right_foot": "right_foot"},
                           robot.q_standing)
     behavior = Behavior(spec, ctrl, factory, standing=robot.q_standing, safety_steps=3)
     state = RobotState(q=robot.q_standing.copy(), v=np.zeros(model.nv), t=0.0,
                        contacts={"left_foot": True, "right_foot": True})
     return behavior, ctrl, state
+
+
+@pytest.fixture()
+def setup(tmp_path: Path):
+    return build(tmp_path)
 
 
 def test_phases_are_an_enum_and_time_is_simulated(setup):
@@ -208,31 +215,26 @@ def test_phase_sets_the_blend_time_and_the_joint_limit_braking(tmp_path: Path) -
     it is active; the next phase restores the controller's blend time and contact braking."""
     from hqp.tasks.joint_limits import JointLimits, SupportBraking
 
-    text = TEXT.replace('contacts = ["left_foot"]\nfinal = true',
-                        'contacts = ["left_foot"]\nblend_time = 0.0\njoint_braking = "airborne"'
-                        '\ntransitions = [{ to = "safe", when = "phase_time >= 0.1" }]')
+    text = TEXT.replace('when = "error.hand < 0.01"', 'when = "phase_time >= 0.05"', 1).replace(
+        'contacts = ["left_foot"]\nfinal = true',
+        'contacts = ["left_foot"]\nblend_time = 0.0\njoint_braking = "airborne"'
+        '\ntransitions = [{ to = "safe", when = "phase_time >= 0.1" }]')
     robot = robots.load("paper-humanoid")
     model = robot.model()
-    path = tmp_path / "machine.toml"
-    path.write_text(text)
-    spec = load_behavior(path, frames=model.frame_names, joints=model.joint_names,
-                         contacts=["left_foot", "right_foot"])
-    assert spec.phases["lift"].joint_braking == "airborne"
-    ctrl = StubController(model)
     limits = JointLimits(qdd_max=50.0, braking=SupportBraking(model, ["left_foot"], 25.0,
                                                               q=robot.q_standing))
-    ctrl.stack.add(limits)
+    behavior, ctrl, state = build(tmp_path, text, [limits])
     default_blend = ctrl.stack.blend_time
-    factory = TaskFactory(model, {"left_foot": "left_foot", "right_foot": "right_foot"},
-                          robot.q_standing)
-    behavior = Behavior(spec, ctrl, factory, standing=robot.q_standing, safety_steps=3)
-    state = RobotState(q=robot.q_standing.copy(), v=np.zeros(model.nv), t=0.0,
-                       contacts={"left_foot": True, "right_foot": True})
+    assert default_blend > 0.0
     behavior.start(state, 0.0)
+    assert not limits.airborne_braking
     behavior.update(state, 0.5, None)
-    behavior._enter("lift", state, 0.6)
+    assert behavior.phase is behavior.Phase.REACH
+    assert ctrl.stack.blend_time == default_blend and not limits.airborne_braking
+    behavior.update(state, 0.56, None)
+    assert behavior.phase is behavior.Phase.LIFT
     assert ctrl.stack.blend_time == 0.0 and limits.airborne_braking
-    behavior.update(state, 0.8, None)
+    behavior.update(state, 0.7, None)
     assert behavior.phase is behavior.Phase.SAFE
     assert ctrl.stack.blend_time == default_blend and not limits.airborne_braking
 
