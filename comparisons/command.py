@@ -2,7 +2,7 @@
 
 ``hqp compare NAME [--json] [--plot DIR] [--controllers ...] [--robot ...] [--duration S]``
 and ``hqp compare --all``. The table (or, with ``--json``, the JSON object of
-ARCHITECTURE.md "Contract: the command line", alone) goes to stdout; progress
+docs/architecture.md "Contract: the command line", alone) goes to stdout; progress
 goes to stderr. With ``--all --json`` stdout holds one object
 ``{"scenarios": [<one contract object per scenario>]}``.
 """

@@ -1,6 +1,6 @@
 """Metrics of a scenario run, computed from its recorded trace.
 
-The definitions are those of the command-line contract (ARCHITECTURE.md,
+The definitions are those of the command-line contract (docs/architecture.md,
 "Contract: the command line"):
 
 - ``cog_error_max_mm``: the largest horizontal distance of the centre of

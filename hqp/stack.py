@@ -1,9 +1,9 @@
 """Priority levels: an ordered stack of tasks, built into solver levels apart from the solve.
 
 A :class:`Stack` holds any number of levels (default: one per :class:`~hqp.tasks.base.Category`,
-in the order of ARCHITECTURE.md "Levels of a control step": physics, contact and actuation limits,
-joint limits, collision, balance, operational, posture). Tasks that share a level are stacked
-into one :class:`hqp.solver.Level`, each task's rows scaled by ``sqrt(weight)``; a strict
+in the order of docs/architecture.md "Levels of a control step": physics, contact and actuation
+limits, joint limits, collision, balance, operational, posture). Tasks that share a level are
+stacked into one :class:`hqp.solver.Level`, each task's rows scaled by ``sqrt(weight)``; a strict
 hierarchy ignores any scaling between levels, so weights only trade tasks of the same level.
 
 :meth:`Stack.build` turns the tasks into levels at the current state without solving them (the

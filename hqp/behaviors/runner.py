@@ -81,7 +81,7 @@ def build_controller(
     backend: str | None = None,
     max_joint_acceleration: float | None = None,
 ) -> Any:
-    """Build a whole-body controller holding only the constraint levels of ARCHITECTURE.md.
+    """Build a whole-body controller holding only the constraint levels of docs/architecture.md.
 
     The standing controllers (:func:`hqp.controller.standing_controller`,
     :func:`hqp.nullspace.standing_nullspace_controller`: physics

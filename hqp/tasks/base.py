@@ -35,7 +35,7 @@ def cross3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 class Category(enum.IntEnum):
-    """Default priority categories, highest first (ARCHITECTURE.md, seed Figure 9).
+    """Default priority categories, highest first (docs/architecture.md, seed Figure 9).
 
     The first four are the constraint sub-levels; a category is a default
     level, not a cage: any task may be placed at any level of a stack.
