@@ -18,6 +18,7 @@ from typing import TextIO
 from comparisons import CONTROLLERS, SCENARIOS, get_scenario
 from comparisons.report import format_table, write_plots
 from comparisons.threads import single_blas_thread
+from hqp.console import stdout_to_stderr
 from hqp.errors import InvalidInput
 
 
@@ -45,7 +46,7 @@ def run(args: argparse.Namespace, out: TextIO | None = None, err: TextIO | None 
 
     With ``--json``, everything written to stdout during the runs (by Python
     or by C libraries) is sent to stderr, and stdout receives the JSON object
-    alone (:func:`hqp.cli.stdout_to_stderr`).
+    alone (:func:`hqp.console.stdout_to_stderr`).
 
     Args:
         args: Parsed arguments (:func:`add_arguments`).
@@ -65,8 +66,6 @@ def run(args: argparse.Namespace, out: TextIO | None = None, err: TextIO | None 
             f"hqp compare: give one scenario name ({', '.join(SCENARIOS)}) or --all"
         )
     if args.json and out is None:
-        from hqp.cli import stdout_to_stderr
-
         with stdout_to_stderr() as original:
             return _run(args, original, err or sys.stderr)
     return _run(args, out or sys.stdout, err or sys.stderr)

@@ -10,43 +10,16 @@ are added by their own modules (:mod:`comparisons.command`,
 from __future__ import annotations
 
 import argparse
-import contextlib
 import json
 import logging
-import os
 import sys
-from collections.abc import Iterator, Sequence
+from collections.abc import Sequence
 from typing import Any
 
+from hqp.console import stdout_to_stderr  # re-exported: hqp.cli.stdout_to_stderr stays importable
 from hqp.errors import HQPError
 
 logger = logging.getLogger(__name__)
-
-
-@contextlib.contextmanager
-def stdout_to_stderr() -> Iterator[Any]:
-    """Send everything written to stdout, by Python or by C libraries, to stderr.
-
-    Yields:
-        A text stream on the original stdout, for the one JSON object.
-
-    """
-    sys.stdout.flush()
-    try:
-        saved = os.dup(1)
-    except OSError:  # no real file descriptor (e.g. captured by a test harness)
-        yield sys.stdout
-        return
-    os.dup2(2, 1)
-    original = os.fdopen(os.dup(saved), "w")
-    try:
-        yield original
-    finally:
-        sys.stdout.flush()
-        original.flush()
-        original.close()
-        os.dup2(saved, 1)
-        os.close(saved)
 
 
 # ------------------------------------------------------------------ bench

@@ -7,6 +7,8 @@ import json
 import sys
 from typing import Any
 
+from hqp.console import stdout_to_stderr
+
 
 def add_run_parser(subparsers: Any) -> argparse.ArgumentParser:
     """Add ``hqp run`` to the CLI's subparsers.
@@ -68,8 +70,6 @@ def run_command(args: argparse.Namespace) -> int:
         if int(round(t * 10)) % 10 == 0:
             print(f"\r{args.behavior}: t = {t:5.1f} / {total:.1f} s", end="", file=sys.stderr,
                   flush=True)
-
-    from hqp.cli import stdout_to_stderr
 
     # C libraries (PlaCo) print to stdout: keep stdout for the one JSON object
     with stdout_to_stderr() as out:
