@@ -35,6 +35,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from hqp.tasks.dynamics import joint_torques
+from hqp.tasks.reference import min_jerk
 
 if TYPE_CHECKING:
     from hqp.model import RobotModel, RobotState
@@ -640,8 +641,6 @@ class WholeBodyController(Controller):
         without the contact failed) the offset between the last torques and the new ones at
         the change decays: ``tau + (1 - s) (tau_last - tau_0)``.
         """
-        from hqp.stack import min_jerk
-
         if self._blend_start is None:
             return tau, False
         s = min_jerk((t - self._blend_start) / self.stack.blend_time)

@@ -55,7 +55,11 @@ import numpy as np
 from hqp.errors import HQPError, InvalidInput, InvalidLevel, UnknownName
 from hqp.layout import ContactType
 from hqp.tasks.base import Category, Rows, Task
-from hqp.tasks.reference import MIN_JERK_PEAK_ACCELERATION, MIN_JERK_PEAK_VELOCITY
+from hqp.tasks.reference import (  # min_jerk: also importable as hqp.stack.min_jerk
+    MIN_JERK_PEAK_ACCELERATION,
+    MIN_JERK_PEAK_VELOCITY,
+    min_jerk,
+)
 from hqp.tasks.tracking import TrackingTask
 
 if TYPE_CHECKING:
@@ -65,12 +69,6 @@ if TYPE_CHECKING:
 
 DEFAULT_LEVELS: tuple[Category, ...] = tuple(Category)
 """Default levels: one per category, highest first."""
-
-
-def min_jerk(s: float) -> float:
-    """Minimum-jerk profile ``10 s^3 - 15 s^4 + 6 s^5`` of a fraction ``s`` clipped to [0, 1]."""
-    s = min(max(s, 0.0), 1.0)
-    return s * s * s * (10.0 + s * (-15.0 + 6.0 * s))
 
 
 class ContactMode(enum.Enum):

@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from hqp.stack import min_jerk
+from hqp.tasks.reference import min_jerk
 
 _BINARY: dict[type, Callable[[Any, Any], Any]] = {
     ast.Add: operator.add,

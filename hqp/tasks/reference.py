@@ -213,6 +213,18 @@ MIN_JERK_PEAK_ACCELERATION = 10.0 / math.sqrt(3.0)
 """Peak acceleration of a minimum-jerk move, in units of ``d / T^2`` (5.77)."""
 
 
+def min_jerk(s: float) -> float:
+    """Minimum-jerk profile ``10 s^3 - 15 s^4 + 6 s^5`` of a fraction ``s`` clipped to [0, 1].
+
+    The ramps of :mod:`hqp.stack`, the controller's blend and the behavior files'
+    ``min_jerk(u)`` use it. Its Horner form is kept as it was: the fraction of
+    :func:`min_jerk_profile` is the same polynomial evaluated otherwise, and the two differ
+    by a few ulps (up to 17) on about half the inputs.
+    """
+    s = min(max(s, 0.0), 1.0)
+    return s * s * s * (10.0 + s * (-15.0 + 6.0 * s))
+
+
 def min_jerk_profile(tau: float, duration: float) -> tuple[float, float, float]:
     """Minimum-jerk fraction and its first two time derivatives.
 
