@@ -143,6 +143,8 @@ def test_warm_start_matches_cold_solves_on_a_drifting_sequence(backend, algorith
     """A persistent warm-started solver gives the costs of fresh solves without it."""
     if backend == "osqp":
         pytest.skip("OSQP's accuracy (1e-6 relative) is checked elsewhere")
+    if backend == "native" and algorithm == "cascade":
+        pytest.skip("the native backend runs the basis algorithm only")
     rng = np.random.default_rng(7)
     base = random_hierarchy(rng, 20, level_specs(20, 4))
     warm = HierarchicalSolver(backend, algorithm, warm_start=True)

@@ -33,7 +33,7 @@ from hqp.solver import HierarchicalSolver, Level
 
 DATA = Path(__file__).resolve().parent / "data" / "solver_real_levels.npz"
 PROBLEMS = ("stand", "screwgun", "reach")
-BACKENDS = ("proxsuite", "daqp", "quadprog")
+BACKENDS = ("proxsuite", "daqp", "quadprog", "native")
 
 
 def load_levels(name: str) -> list[Level]:

@@ -85,6 +85,7 @@ _REGISTRY: dict[str, tuple[str, str]] = {
     "osqp": ("hqp.solver.osqp_", "OsqpBackend"),
     "daqp": ("hqp.solver.daqp_", "DaqpBackend"),
     "quadprog": ("hqp.solver.quadprog_", "QuadprogBackend"),
+    "native": ("hqp.solver.native_", "NativeBackend"),
 }
 """Backend name -> (module, class). Modules import their QP library lazily."""
 
@@ -93,6 +94,7 @@ _REQUIRES = {
     "osqp": "osqp",
     "daqp": "daqp",
     "quadprog": "quadprog",
+    "native": "hqp._core._ext",
 }
 
 

@@ -1,6 +1,6 @@
 """The strict lexicographic solver: basis algorithm and plain cascade.
 
-Both algorithms return the contract's solution (ARCHITECTURE.md, "Contract:
+Both algorithms return the contract's solution (docs/architecture.md, "Contract:
 the solver"): level ``k`` minimises
 
     ||A_k x - b_k||^2 + ||dist(C_k x, [lower_k, upper_k])||^2
@@ -62,6 +62,7 @@ from hqp.errors import (
     UnknownName,
     check_array,
 )
+from hqp.solver import native_
 from hqp.solver.active_set import Guess, guess_from_point, solve_guess
 from hqp.solver.backend import QPBackend, make_backend
 from hqp.solver.level import CheckedLevel, Level, check_level, trusted_level
@@ -318,6 +319,10 @@ class HierarchicalSolver:
     ) -> None:
         if algorithm not in ALGORITHMS:
             raise UnknownName("algorithm", str(algorithm), ALGORITHMS)
+        if backend == "native" and algorithm != "basis":
+            raise InvalidInput(
+                f"algorithm {algorithm!r}: the native backend runs the basis algorithm only "
+                "(the cascade is a Python baseline; use a QP backend for it)")
         self.rank_tol = _check_rank_tol(rank_tol)
         self.backend_name = backend
         self.algorithm = algorithm
@@ -332,9 +337,15 @@ class HierarchicalSolver:
         self._needed_qp: dict[Any, tuple[int, int, int]] = {}
         self._norm_levels: dict[int, list[tuple[CheckedLevel, int]]] = {}
         self._bufs: dict[Any, tuple[tuple[int, int, int, int], tuple[np.ndarray, ...]]] = {}
+        self._native = None
+        if backend == "native":
+            self._native = native_.load_core().Solver(
+                self.rank_tol, self.warm_start, bool(compute_sigma))
 
     def reset(self) -> None:
         """Forget the persistent QPs (the next solve starts cold)."""
+        if self._native is not None:
+            self._native.reset()
         self._backend.reset()
         self._backend.__dict__.pop("_hqp_relaxed", None)
         self._guesses.clear()
@@ -441,6 +452,9 @@ class HierarchicalSolver:
             if value is not None:
                 shape = np.shape(value)
                 n_hint = int(shape[0]) if len(shape) else None
+        if self._native is not None:
+            return self._solve_native(levels, final_metric, final_target, validate, n_hint,
+                                      t_start)
         if validate:
             checked, n = _check_levels(levels, n_hint)
         else:
@@ -481,6 +495,32 @@ class HierarchicalSolver:
             algorithm=self.algorithm,
             qp_count=qp_count,
         )
+
+    # ----------------------------------------------------------------- native
+    def _solve_native(self, levels: Sequence[Level], final_metric: Any, final_target: Any,
+                      validate: bool, n_hint: int | None, t_start: float) -> Solution:
+        """Solve on the C++ core; levels already in float64 arrays pass without a copy."""
+        fast = native_.fast_rows(levels, n_hint)
+        if fast is None:
+            checked, n = (_check_levels if validate else _trusted_levels)(levels, n_hint)
+            rows, names = native_.checked_rows(checked), checked
+            core_validate = False
+        else:
+            rows, n = fast
+            names = levels
+            core_validate = validate
+        final = None
+        if final_metric is not None or final_target is not None:
+            internal = _final_levels(n, final_metric, final_target)
+            if len(internal) == 2:
+                lv, kind = internal[0]
+                final = (lv.A, lv.b, kind, lv.a_scale)
+        out = self._native.solve(rows, n, final, core_validate)
+        if isinstance(out, int):
+            native_.explain_invalid(levels, out, n)
+        if isinstance(out, str):
+            raise SolverFailure(f"backend 'native': {out}")
+        return native_.make_solution(out, names, time.perf_counter() - t_start)
 
     # ------------------------------------------------------------------ basis
     def _solve_basis(
@@ -807,7 +847,7 @@ def solve(
     rank_tol: float = 1e-9,
     algorithm: str = "basis",
 ) -> Solution:
-    """Solve a strict lexicographic hierarchy (ARCHITECTURE.md, "Contract: the solver").
+    """Solve a strict lexicographic hierarchy (docs/architecture.md, "Contract: the solver").
 
     Level ``k`` minimises ``||A_k x - b_k||^2 + ||dist(C_k x, [lower_k, upper_k])||^2``
     over the minimisers of levels ``0..k-1``; then ``(x - final_target)^T
@@ -817,7 +857,8 @@ def solve(
 
     Args:
         levels: Levels, highest priority (0) first.
-        backend: QP backend: ``"proxsuite"`` (default), ``"osqp"``, ``"daqp"``, ``"quadprog"``.
+        backend: QP backend: ``"proxsuite"`` (default), ``"osqp"``, ``"daqp"``, ``"quadprog"``,
+            or ``"native"`` (the whole basis algorithm in the C++ core).
         final_metric: Symmetric positive semidefinite ``(n, n)``; ``None`` = identity.
         final_target: ``(n,)``; ``None`` = zero.
         rank_tol: Rank threshold relative to the largest singular value of a

@@ -1,0 +1,1 @@
+"""hqp's native core (C++17, compiled by the package build)."""

@@ -1,0 +1,24 @@
+// hqp._core._ext: the native core's Python module.
+#include <nanobind/eigen/dense.h>
+#include <nanobind/nanobind.h>
+#include <nanobind/stl/string.h>
+
+#include "bindings_solver.hpp"
+#include "model.hpp"
+
+namespace nb = nanobind;
+
+NB_MODULE(_ext, m) {
+  m.doc() = "hqp's native core: the strict lexicographic solver (and, from part 2, the step).";
+  hqp::bind_solver(m);
+  m.def(
+      "check_urdf_model",
+      [](const std::string& path, bool free_flyer, const Eigen::VectorXd& q,
+         const Eigen::VectorXd& v) {
+        hqp::ModelCheck r = hqp::check_urdf_model(path, free_flyer, q, v);
+        return nb::make_tuple(r.nq, r.nv, r.mass, r.M, r.h);
+      },
+      nb::arg("urdf_path"), nb::arg("free_flyer"), nb::arg("q"), nb::arg("v"),
+      "Mass matrix and bias forces of a URDF model from pinocchio's C++ API: (nq, nv, mass, "
+      "M, h).");
+}

@@ -1,0 +1,153 @@
+// Python bindings of the native solver, shared by hqp._core._ext and the allocation-checked
+// hqp._core._ext_checked (which differ only in how the solver sources were compiled).
+#pragma once
+
+#include <nanobind/eigen/dense.h>
+#include <nanobind/nanobind.h>
+#include <nanobind/stl/string.h>
+
+#include <cmath>
+#include <memory>
+#include <string>
+
+#include "solver/hierarchy.hpp"
+
+namespace hqp {
+
+namespace nb = nanobind;
+using DMat = nb::DRef<const Eigen::MatrixXd>;
+using DVec = nb::DRef<const Eigen::VectorXd>;
+
+/// The first malformed level (-1: none): shapes, NaN or inf in A, b, C, NaN in a bound,
+/// lower > upper, +inf lower, -inf upper. Python explains it (hqp.solver.level).
+inline long check_level(const LevelData& lv, Index n) {
+  if (lv.A.cols() != n || lv.C.cols() != n || lv.b.size() != lv.A.rows() ||
+      lv.lo.size() != lv.C.rows() || lv.up.size() != lv.C.rows())
+    return 1;
+  if (!lv.A.allFinite() || !lv.b.allFinite() || !lv.C.allFinite()) return 1;
+  for (Index i = 0; i < lv.C.rows(); ++i) {
+    const double l = lv.lo(i), u = lv.up(i);
+    if (std::isnan(l) || std::isnan(u) || l > u || l == HUGE_VAL || u == -HUGE_VAL) return 1;
+  }
+  return 0;
+}
+
+class PySolver {
+ public:
+  PySolver(double rank_tol, bool warm_start, bool compute_sigma)
+      : hierarchy_(Settings{rank_tol, warm_start, compute_sigma}) {}
+
+  /// levels: list of (A, b, C, lower, upper) float64 arrays of one n; final: None or
+  /// (A, b, kind, a_scale) of the final-metric level. Returns the failing level's index
+  /// (validation), or a result tuple.
+  nb::object solve(nb::list levels, Index n, nb::object final, bool validate,
+                   bool forbid_malloc) {
+    const std::size_t L = nb::len(levels);
+    const std::size_t extra = final.is_none() ? 1 : 2;
+    hierarchy_.resize_levels(L + extra);
+    auto& data = hierarchy_.levels();
+    for (std::size_t k = 0; k < L; ++k) {
+      nb::tuple t = nb::cast<nb::tuple>(levels[k]);
+      LevelData& lv = data[k];
+      lv.A = nb::cast<DMat>(t[0]);
+      lv.b = nb::cast<DVec>(t[1]);
+      lv.C = nb::cast<DMat>(t[2]);
+      lv.lo = nb::cast<DVec>(t[3]);
+      lv.up = nb::cast<DVec>(t[4]);
+      lv.kind = LevelKind::kUser;
+      if (validate && check_level(lv, n)) return nb::int_(long(k));
+      lv.finish();
+    }
+    std::size_t k = L;
+    if (!final.is_none()) {
+      nb::tuple t = nb::cast<nb::tuple>(final);
+      LevelData& lv = data[k++];
+      lv.A = nb::cast<DMat>(t[0]);
+      lv.b = nb::cast<DVec>(t[1]);
+      lv.kind = LevelKind(nb::cast<int>(t[2]));
+      lv.C.resize(0, n);
+      lv.lo.resize(0);
+      lv.up.resize(0);
+      lv.finish();
+      lv.a_scale = nb::cast<double>(t[3]);
+    }
+    LevelData& norm = data[k];
+    if (norm.A.rows() != n || norm.A.cols() != n || norm.kind != LevelKind::kNorm ||
+        !norm.b.isZero(0.0)) {
+      norm.A.setIdentity(n, n);
+      norm.b.setZero(n);
+      norm.C.resize(0, n);
+      norm.lo.resize(0);
+      norm.up.resize(0);
+      norm.kind = LevelKind::kNorm;
+      norm.finish();
+    }
+    norm.a_scale = 1.0;
+    std::string error;
+    {
+      nb::gil_scoped_release release;
+      error = run(n, Index(L), forbid_malloc);
+    }
+    if (!error.empty()) return nb::str(error.c_str());
+    const auto& res = hierarchy_.results();
+    nb::list reports;
+    for (std::size_t j = 0; j < L; ++j) {
+      const LevelResult& r = res[j];
+      reports.append(nb::make_tuple(r.cost, r.satisfied, r.sigma_min, Eigen::VectorXd(r.residual_eq),
+                                    Eigen::VectorXd(r.violation_in), Eigen::VectorXi(r.state),
+                                    r.seconds));
+    }
+    return nb::make_tuple(Eigen::VectorXd(hierarchy_.x()), reports, hierarchy_.qp_count(),
+                          hierarchy_.final_seconds());
+  }
+
+  void reset() { hierarchy_.reset(); }
+
+ private:
+  std::string run(Index n, Index L, bool forbid_malloc) {
+#ifdef HQP_CHECK_MALLOC
+    set_malloc_allowed(!forbid_malloc);
+    try {
+      std::string error = hierarchy_.solve(n, L);
+      set_malloc_allowed(true);
+      return error;
+    } catch (const EigenAssertion& e) {
+      set_malloc_allowed(true);
+      return std::string("eigen assertion: ") + e.what();
+    }
+#else
+    (void)forbid_malloc;
+    return hierarchy_.solve(n, L);
+#endif
+  }
+
+  Hierarchy hierarchy_;
+};
+
+inline void bind_solver(nb::module_& m) {
+  nb::class_<PySolver>(m, "Solver")
+      .def(nb::init<double, bool, bool>(), nb::arg("rank_tol"), nb::arg("warm_start"),
+           nb::arg("compute_sigma"))
+      .def("solve", &PySolver::solve, nb::arg("levels"), nb::arg("n"), nb::arg("final").none(),
+           nb::arg("validate"), nb::arg("forbid_malloc") = false)
+      .def("reset", &PySolver::reset);
+  m.def(
+      "level_qp",
+      [](const Eigen::MatrixXd& H, const Eigen::VectorXd& g, const Eigen::MatrixXd& C,
+         const Eigen::VectorXd& lo, const Eigen::VectorXd& up) {
+        LevelQP qp;
+        Eigen::VectorXd v;
+        const bool ok = qp.solve(H, g, C, lo, up, v);
+        return nb::make_tuple(v, ok);
+      },
+      nb::arg("H"), nb::arg("g"), nb::arg("C"), nb::arg("lo"), nb::arg("up"),
+      "The compiled level QP (DAQP with the hierarchy's retries): min 0.5 v'Hv + g'v, "
+      "lo <= C v <= up; returns (v, converged). For tests.");
+#ifdef HQP_CHECK_MALLOC
+  m.attr("malloc_checked") = true;
+#else
+  m.attr("malloc_checked") = false;
+#endif
+}
+
+}  // namespace hqp

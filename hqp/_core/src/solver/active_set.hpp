@@ -1,0 +1,63 @@
+// Active-set warm start of one level problem, verified by its optimality conditions: the
+// C++ twin of hqp/solver/active_set.py (see its module docstring for the method).
+//
+//   min_v ||A v - b||^2 + ||dist(C v, [lo, up])||^2   s.t.  gl <= G v <= gu
+//
+// A guess holds s (mc,) per level row (+1 violated above, -1 below, 0 inside) and w (p,) per
+// carried row (+1 held at gu, -1 at gl, 0 free).
+#pragma once
+
+#include <vector>
+
+#include "solver/linalg.hpp"
+
+namespace hqp {
+
+using IVec = Eigen::VectorXi;
+
+constexpr double kFeasTol = 1e-9;
+constexpr double kDualTol = 1e-9;
+constexpr int kMaxIter = 6;
+
+struct LevelRows {
+  CMatRef A;
+  CVecRef b;
+  CMatRef C;
+  CVecRef lo, up, los, ups;
+};
+
+struct CarriedRows {
+  CMatRef G;
+  CVecRef gl, gu, gls, gus;
+};
+
+class ActiveSetSolver {
+ public:
+  /// Solve from the guess (s, w), updated in place to the last guess tried. Returns true
+  /// and v when a guess verified; `ref` (nullptr: none) picks the minimiser closest to it
+  /// where the rows leave directions free.
+  bool solve(const LevelRows& L, const CarriedRows& K, IVec& s, IVec& w, double rank_tol,
+             double scale, int max_iter, const VectorXd* ref, VectorXd& v);
+
+ private:
+  bool signed_multipliers(Index nheld, double dtol);
+  PivotedQR kqr_;
+  LeastSquares ls_;
+  MatrixXd M_, Kh_, MQ_, Kt_;
+  VectorXd d_, kh_, vp_, rhs_, zr_, t_, cv_, gv_, grad_, res_, mu_, tmp_;
+  IVec sel_, held_, wp_, s_new_, w_new_, dep_g_, free_;
+  std::vector<IVec> seen_s_, seen_w_;
+  // NNLS workspace
+  MatrixXd nn_A_, nn_P_;
+  VectorXd nn_x_, nn_w_, nn_z_, nn_b_;
+  IVec nn_set_;
+};
+
+/// The active set of a point: level rows by the side they violate, carried rows held when
+/// within active_tol * scale of a bound (hqp.solver.active_set.guess_from_point).
+void guess_from_point(const VectorXd* cv, const CVecRef& lo, const CVecRef& up,
+                      const CVecRef& los, const CVecRef& ups, const VectorXd* gv,
+                      const CVecRef& gl, const CVecRef& gu, const CVecRef& gls,
+                      const CVecRef& gus, double active_tol, IVec& s, IVec& w);
+
+}  // namespace hqp

@@ -1,0 +1,178 @@
+// Small dense factorisations of the native solver; see linalg.hpp.
+#include "solver/linalg.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace hqp {
+
+void set_malloc_allowed(bool allowed) {
+#ifdef EIGEN_RUNTIME_NO_MALLOC
+  Eigen::internal::set_is_malloc_allowed(allowed);
+#else
+  (void)allowed;
+#endif
+}
+
+void form_q(const MatrixXd& qr, const VectorXd& tau, MatrixXd& Q, VectorXd& ws) {
+  const Index rows = qr.rows();
+  const Index vecs = std::min<Index>(tau.size(), std::min(qr.rows(), qr.cols()));
+  Q.resize(rows, rows);
+  Q.setIdentity();
+  ws.resize(rows);
+  for (Index k = vecs - 1; k >= 0; --k) {
+    const Index corner = rows - k;
+    Q.bottomRightCorner(corner, corner)
+        .applyHouseholderOnTheLeft(qr.col(k).tail(rows - k - 1), tau(k), ws.data());
+  }
+}
+
+void PivotedQR::factor(const CMatRef& M) {
+  m_ = M.rows();
+  r_ = M.cols();
+  Mt_.resize(r_, m_);
+  Mt_.noalias() = M.transpose();
+  q_ready_ = false;
+  perm_.resize(m_);
+  if (m_ == 0 || r_ == 0) {
+    for (Index i = 0; i < m_; ++i) perm_(i) = i;
+    return;
+  }
+  qr_.compute(Mt_);
+  const auto& P = qr_.colsPermutation().indices();
+  for (Index i = 0; i < m_; ++i) perm_(i) = P(i);
+}
+
+void PivotedQR::compute(const CMatRef& M, double rank_tol, double scale) {
+  factor(M);
+  rank_ = 0;
+  const Index d = std::min(m_, r_);
+  if (d == 0) return;
+  const auto& R = qr_.matrixQR();
+  const double top = std::max(std::abs(R(0, 0)), scale);
+  for (Index i = 0; i < d; ++i) {
+    if (std::abs(R(i, i)) > rank_tol * top) ++rank_;
+  }
+}
+
+void PivotedQR::compute_relative(const CMatRef& M, double rank_tol) {
+  factor(M);
+  rank_ = 0;
+  const Index d = std::min(m_, r_);
+  if (d == 0) return;
+  const auto& R = qr_.matrixQR();
+  const double top = std::abs(R(0, 0));
+  for (Index i = 0; i < d; ++i) {
+    if (std::abs(R(i, i)) > rank_tol * top) ++rank_;
+  }
+}
+
+const MatrixXd& PivotedQR::Q() {
+  if (!q_ready_) {
+    if (m_ == 0 || r_ == 0) {
+      Q_.resize(r_, r_);
+      Q_.setIdentity();
+    } else {
+      form_q(qr_.matrixQR(), qr_.hCoeffs(), Q_, ws_);
+    }
+    q_ready_ = true;
+  }
+  return Q_;
+}
+
+void PivotedQR::lstsq(const CVecRef& rhs, VecRef y) {
+  const Index k = rank_;
+  if (k == 0) {
+    y.setZero();
+    return;
+  }
+  const auto& R = qr_.matrixQR();
+  c_.resize(m_);
+  for (Index i = 0; i < m_; ++i) c_(i) = rhs(perm_(i));
+  z_.resize(k);
+  if (m_ == k) {
+    // square lower-triangular R11^T: one triangular solve
+    z_ = c_.head(k);
+    R.topLeftCorner(k, k).transpose().triangularView<Eigen::Lower>().solveInPlace(z_);
+  } else {
+    // more rows than rank: least squares on the (m, k) trapezoid L = R[:k, :]^T, of full
+    // column rank k (a second pivoted QR; its reflectors applied by hand, no temporaries)
+    L_.resize(m_, k);
+    L_.noalias() = R.topRows(k).transpose();
+    L_.triangularView<Eigen::StrictlyUpper>().setZero();
+    lqr_.compute(L_);
+    const auto& QR2 = lqr_.matrixQR();
+    const auto& tau = lqr_.hCoeffs();
+    ws_.resize(1);
+    for (Index i = 0; i < k; ++i) {
+      c_.tail(m_ - i).applyHouseholderOnTheLeft(QR2.col(i).tail(m_ - i - 1), tau(i), ws_.data());
+    }
+    QR2.topLeftCorner(k, k).triangularView<Eigen::Upper>().solveInPlace(c_.head(k));
+    const auto& P2 = lqr_.colsPermutation().indices();
+    for (Index i = 0; i < k; ++i) z_(P2(i)) = c_(i);
+  }
+  y.noalias() = Q().leftCols(k) * z_;
+}
+
+void PivotedQR::particular(const CVecRef& kv, VecRef y) {
+  const Index k = rank_;
+  if (k == 0) {
+    y.setZero();
+    return;
+  }
+  z_.resize(k);
+  for (Index i = 0; i < k; ++i) z_(i) = kv(perm_(i));
+  qr_.matrixQR().topLeftCorner(k, k).transpose().triangularView<Eigen::Lower>().solveInPlace(z_);
+  y.noalias() = Q().leftCols(k) * z_;
+}
+
+void PivotedQR::multipliers(const CVecRef& c, VecRef mu) {
+  const Index k = rank_;
+  mu.setZero();
+  if (k == 0) return;
+  z_.resize(k);
+  z_ = c;
+  qr_.matrixQR().topLeftCorner(k, k).triangularView<Eigen::Upper>().solveInPlace(z_);
+  for (Index i = 0; i < k; ++i) mu(perm_(i)) = z_(i);
+}
+
+void PivotedQR::singular_values(VecRef s) {
+  const Index d = std::min(m_, r_);
+  if (d == 0) return;
+  Rsq_.resize(d, m_);
+  Rsq_ = qr_.matrixQR().topRows(d).triangularView<Eigen::Upper>();
+  svd_.compute(Rsq_);
+  s = svd_.singularValues();
+}
+
+void LeastSquares::solve(const CMatRef& M, const CVecRef& rhs, double rank_tol, double scale,
+                         VecRef y) {
+  const Index m = M.rows(), r = M.cols();
+  if (m == 0 || r == 0) {
+    y.setZero();
+    return;
+  }
+  const double top = M.cwiseAbs().maxCoeff();
+  if (top == 0.0) {
+    y.setZero();
+    return;
+  }
+  qr_.compute(M, rank_tol, scale);
+  qr_.lstsq(rhs, y);
+}
+
+const VectorXd& SingularValues::compute(const CMatRef& M) {
+  const Index m = M.rows();
+  s_.resize(m);
+  if (m == 0) return s_;
+  Mt_.resize(M.cols(), m);
+  Mt_.noalias() = M.transpose();
+  qr_.compute(Mt_);
+  R_.resize(m, m);
+  R_ = qr_.matrixQR().topRows(m).triangularView<Eigen::Upper>();
+  svd_.compute(R_);
+  s_ = svd_.singularValues();
+  return s_;
+}
+
+}  // namespace hqp

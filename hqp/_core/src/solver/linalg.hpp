@@ -1,0 +1,117 @@
+// Small dense factorisations of the native solver (Eigen), the C++ twins of
+// hqp/solver/linalg.py. Every object is a workspace: sized once per shape, then recomputed
+// in place without heap allocation while the shape holds.
+#pragma once
+
+#ifdef HQP_CHECK_MALLOC
+// The checked build (hqp._core._ext_checked): Eigen's run-time allocation check reports
+// through eigen_assert, which throws instead of aborting, so a test can catch it.
+#include <stdexcept>
+namespace hqp {
+struct EigenAssertion : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+}  // namespace hqp
+#define eigen_assert(x)                                                  \
+  do {                                                                   \
+    if (!static_cast<bool>(x)) throw ::hqp::EigenAssertion(#x);          \
+  } while (false)
+#endif
+
+#include <Eigen/Core>
+#include <Eigen/QR>
+#include <Eigen/SVD>
+
+namespace hqp {
+
+using Eigen::Index;
+using Eigen::MatrixXd;
+using Eigen::VectorXd;
+using MatRef = Eigen::Ref<MatrixXd>;
+using CMatRef = Eigen::Ref<const MatrixXd>;
+using VecRef = Eigen::Ref<VectorXd>;
+using CVecRef = Eigen::Ref<const VectorXd>;
+
+/// Whether Eigen may allocate on the heap (checked build only; no-op otherwise).
+void set_malloc_allowed(bool allowed);
+
+/// Rank-revealing QR of a matrix M (m, r) through M^T P = Q R (column pivoting on M^T, i.e.
+/// on the rows of M, as LAPACK's dgeqp3 in the Python reference).
+///
+/// Rank: the number of |R_ii| above rank_tol * max(|R_00|, scale).
+class PivotedQR {
+ public:
+  /// Factorise M. `scale`: the largest entry of the level's unprojected rows (0 if none).
+  void compute(const CMatRef& M, double rank_tol, double scale);
+  /// Factorise with the rank relative to |R_00| alone (the active-set solves).
+  void compute_relative(const CMatRef& M, double rank_tol);
+
+  Index rank() const { return rank_; }
+  Index rows() const { return m_; }  ///< m
+  Index cols() const { return r_; }  ///< r
+  /// Full orthogonal factor Q (r, r), formed on first use after compute.
+  const MatrixXd& Q();
+  /// Orthonormal basis (r, r - rank) of the null space of M.
+  Eigen::Block<const MatrixXd, Eigen::Dynamic, Eigen::Dynamic, true> null() {
+    return Q().rightCols(r_ - rank_);
+  }
+  /// Least-squares solution y (r,) of M y ~ rhs, minimum norm up to the rank cut.
+  void lstsq(const CVecRef& rhs, VecRef y);
+  /// y (r,) = Q1 R11^-T k[piv[:rank]] (the minimum-norm point of the first `rank` pivoted
+  /// rows of M held at k; the active-set solves).
+  void particular(const CVecRef& k, VecRef y);
+  /// mu[piv[:rank]] = R11^-1 c for c (rank,) (multipliers of the held rows).
+  void multipliers(const CVecRef& c, VecRef mu);
+  /// Index of the i-th pivoted row of M.
+  Index pivot(Index i) const { return perm_(i); }
+  /// Singular values of M (those of R), largest first, into s (min(m, r),).
+  void singular_values(VecRef s);
+  /// The upper-left (rank, rank) block of R.
+  Eigen::Block<const MatrixXd> R11() const {
+    return qr_.matrixQR().topLeftCorner(rank_, rank_);
+  }
+
+ private:
+  void factor(const CMatRef& M);
+  Eigen::ColPivHouseholderQR<MatrixXd> qr_;
+  MatrixXd Mt_;
+  MatrixXd Q_;
+  MatrixXd L_;
+  MatrixXd Rsq_;
+  Eigen::ColPivHouseholderQR<MatrixXd> lqr_;
+  Eigen::JacobiSVD<MatrixXd> svd_;
+  VectorXd ws_, z_, c_;
+  Eigen::VectorXi perm_;
+  Index m_ = 0, r_ = 0, rank_ = 0;
+  bool q_ready_ = false;
+};
+
+/// Form the full orthogonal factor (rows, rows) of a Householder QR held in `qr`
+/// (reflectors below the diagonal, coefficients `tau`), without Eigen's blocked path
+/// (which allocates a temporary for more than 48 reflectors).
+void form_q(const MatrixXd& qr, const VectorXd& tau, MatrixXd& Q, VectorXd& ws);
+
+/// Minimum-norm least squares of M y ~ rhs (the C++ twin of hqp.solver.linalg.lstsq):
+/// pivoted QR with the threshold rank_tol * max(|R_00|, scale).
+class LeastSquares {
+ public:
+  void solve(const CMatRef& M, const CVecRef& rhs, double rank_tol, double scale, VecRef y);
+
+ private:
+  PivotedQR qr_;
+};
+
+/// Singular values of M (m, r), m <= r, largest first: those of the (m, m) triangular
+/// factor of M^T.
+class SingularValues {
+ public:
+  const VectorXd& compute(const CMatRef& M);
+
+ private:
+  Eigen::ColPivHouseholderQR<MatrixXd> qr_;  // unblocked: no temporaries
+  MatrixXd Mt_, R_;
+  Eigen::JacobiSVD<MatrixXd> svd_;
+  VectorXd s_;
+};
+
+}  // namespace hqp

@@ -1,0 +1,112 @@
+// DAQP calls of the native solver; see qp.hpp.
+#include "solver/qp.hpp"
+
+#include <cmath>
+#include <limits>
+
+extern "C" {
+#include "api.h"
+}
+
+namespace hqp {
+
+namespace {
+
+constexpr double kDaqpInf = 1e30;
+constexpr double kRetryMargins[] = {1e-9, 1e-7};
+constexpr int kRelaxSticky = 20;
+constexpr double kEpsProx[] = {1e-6, 1e-4, 1e-2, 1.0, -1.0};
+constexpr double kPrimalTol[] = {1e-10, 1e-8};
+
+double bound_scale(double b) { return std::isfinite(b) ? std::max(1.0, std::abs(b)) : 1.0; }
+
+}  // namespace
+
+bool LevelQP::daqp(double margin, VectorXd& v) {
+  const int n = int(H_.rows());
+  const int m = int(A_.rows());
+  bu_.resize(m);
+  bl_.resize(m);
+  for (int i = 0; i < m; ++i) {
+    double u = up_(i), l = lo_(i);
+    if (margin > 0.0) {
+      u += margin * bound_scale(u);
+      l -= margin * bound_scale(l);
+    }
+    bu_(i) = std::min(u, kDaqpInf);
+    bl_(i) = std::max(l, -kDaqpInf);
+  }
+  sense_.assign(m, 0);
+  lam_.resize(std::max(m, 1));
+  v.resize(n);
+  for (double primal_tol : kPrimalTol) {
+    for (double eps_prox : kEpsProx) {
+      DAQPProblem qp;
+      qp.n = n;
+      qp.m = m;
+      qp.ms = 0;
+      qp.H = H_.data();
+      qp.f = g_.data();
+      qp.A = m ? A_.data() : nullptr;
+      qp.bupper = m ? bu_.data() : nullptr;
+      qp.blower = m ? bl_.data() : nullptr;
+      qp.sense = m ? sense_.data() : nullptr;
+      qp.break_points = nullptr;
+      qp.nh = 0;
+      qp.problem_type = 0;
+      DAQPSettings settings;
+      daqp_default_settings(&settings);
+      settings.primal_tol = primal_tol;
+      settings.dual_tol = 1e-12;
+      settings.iter_limit = 2000;
+      settings.eta_prox = 1e-12;
+      settings.eps_prox = eps_prox;
+      DAQPResult res;
+      res.x = v.data();
+      res.lam = lam_.data();
+      daqp_quadprog(&res, &qp, &settings);
+      if (res.exitflag >= 1 && v.allFinite()) return true;
+    }
+  }
+  v.setConstant(std::numeric_limits<double>::quiet_NaN());
+  return false;
+}
+
+bool LevelQP::solve(const CMatRef& H, const CVecRef& g, const CMatRef& C, const CVecRef& lo,
+                    const CVecRef& up, VectorXd& v) {
+  // normalise the cost: the minimiser does not change, DAQP's tolerances then mean the same
+  // thing for levels of any scale
+  const double scale = H.size() ? H.cwiseAbs().maxCoeff() : 0.0;
+  H_ = H;
+  g_ = g;
+  if (scale > 0.0 && (scale < 0.1 || scale > 10.0)) {
+    H_ /= scale;
+    g_ /= scale;
+  }
+  A_ = C;
+  lo_ = lo;
+  up_ = up;
+  const bool has_in = C.rows() > 0;
+  if (has_in && sticky_ >= 0) {
+    const int i = sticky_;
+    if (--sticky_left_ <= 0) sticky_ = -1;
+    if (daqp(kRetryMargins[i], v)) return true;
+    sticky_ = -1;
+  }
+  bool ok = daqp(0.0, v);
+  if (ok || !has_in) return ok;
+  VectorXd v2;
+  for (int i = 0; i < 2; ++i) {
+    if (i && v.allFinite()) break;
+    if (daqp(kRetryMargins[i], v2)) {
+      sticky_ = i;
+      sticky_left_ = kRelaxSticky;
+      v = v2;
+      return true;
+    }
+    if (!v.allFinite()) v = v2;
+  }
+  return false;
+}
+
+}  // namespace hqp

@@ -1,0 +1,30 @@
+// The compiled QP of the native solver's cold and degenerate levels: DAQP (vendored C
+// sources), with the Python daqp backend's settings and the hierarchy's retries on
+// relaxed bounds (hqp/solver/daqp_.py, hqp.solver.hierarchy._qp).
+#pragma once
+
+#include <vector>
+
+#include "solver/linalg.hpp"
+
+namespace hqp {
+
+class LevelQP {
+ public:
+  /// min 0.5 v^T H v + g^T v  s.t.  lo <= C v <= up (C may have no rows). Returns whether
+  /// DAQP converged; v holds its point (NaN when nothing finite came back).
+  bool solve(const CMatRef& H, const CVecRef& g, const CMatRef& C, const CVecRef& lo,
+             const CVecRef& up, VectorXd& v);
+  /// Forget the relaxation memory.
+  void reset() { sticky_ = -1; }
+
+ private:
+  bool daqp(double margin, VectorXd& v);
+  Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> H_, A_;
+  VectorXd g_, lo_, up_, bu_, bl_, lam_;
+  std::vector<int> sense_;
+  int sticky_ = -1;    // index of the relaxation that last succeeded on this slot
+  int sticky_left_ = 0;
+};
+
+}  // namespace hqp
