@@ -21,6 +21,8 @@ from hqp.solver import (
 
 BACKENDS = available_backends()
 COMBOS = [(b, a) for b in BACKENDS for a in ALGORITHMS if b != "native" or a == "basis"]
+SOLVERS = [("proxsuite", "basis"), ("proxsuite", "cascade"), ("native", "basis")]
+"""The solvers of the closed-form and reference tests: both Python algorithms and the core."""
 
 
 @pytest.fixture(autouse=True)
@@ -193,8 +195,8 @@ def test_equality_only_matches_recursive_pseudo_inverse(seed):
         eq.append((A, rng.standard_normal(int(m))))
     levels = [Level(A=A, b=b) for A, b in eq]
     ref = pinv_recursion(eq, n)
-    for algorithm in ALGORITHMS:
-        sol = solve(levels, algorithm=algorithm)
+    for backend, algorithm in SOLVERS:
+        sol = solve(levels, backend=backend, algorithm=algorithm)
         np.testing.assert_allclose(sol.x, ref, atol=1e-8, rtol=0)
 
 
@@ -208,15 +210,16 @@ def test_equality_only_with_final_metric_and_target(seed):
     B = rng.standard_normal((n, n))
     M = B @ B.T + 0.1 * np.eye(n)  # positive definite
     t = rng.standard_normal(n)
-    for algorithm in ALGORITHMS:
-        sol = solve(levels, algorithm=algorithm, final_metric=M, final_target=t)
+    for backend, algorithm in SOLVERS:
+        sol = solve(levels, backend=backend, algorithm=algorithm, final_metric=M, final_target=t)
         np.testing.assert_allclose(sol.x, pinv_recursion(eq, n, M, t), atol=1e-8, rtol=0)
         # target only (identity metric): the projection of t on the optimal set
-        sol = solve(levels, algorithm=algorithm, final_target=t)
+        sol = solve(levels, backend=backend, algorithm=algorithm, final_target=t)
         np.testing.assert_allclose(sol.x, pinv_recursion(eq, n, None, t), atol=1e-8, rtol=0)
 
 
-def test_semidefinite_metric_ties_broken_by_minimum_norm():
+@pytest.mark.parametrize("backend", ["proxsuite", "native"])
+def test_semidefinite_metric_ties_broken_by_minimum_norm(backend):
     rng = np.random.default_rng(7)
     n = 8
     A = rng.standard_normal((2, n))
@@ -224,7 +227,7 @@ def test_semidefinite_metric_ties_broken_by_minimum_norm():
     W = np.zeros((n, n))
     W[:3, :3] = np.diag([1.0, 2.0, 3.0])  # metric on the first 3 variables only
     t = rng.standard_normal(n)
-    sol = solve([Level(A=A, b=b)], final_metric=W, final_target=t)
+    sol = solve([Level(A=A, b=b)], backend=backend, final_metric=W, final_target=t)
     R = np.sqrt(W)
     ref = pinv_recursion([(A, b), (R, R @ t), (np.eye(n), np.zeros(n))], n)
     np.testing.assert_allclose(sol.x, ref, atol=1e-8)
@@ -242,8 +245,8 @@ def test_conflicting_and_rank_deficient_equalities():
     b1 = np.array([b0[0] + 1.0, 0.5, 0.5])
     levels = [Level(A=A0, b=b0, name="top"), Level(A=A1, b=b1, name="low")]
     ref = pinv_recursion([(A0, b0), (A1, b1)], n)
-    for algorithm in ALGORITHMS:
-        sol = solve(levels, algorithm=algorithm)
+    for backend, algorithm in SOLVERS:
+        sol = solve(levels, backend=backend, algorithm=algorithm)
         np.testing.assert_allclose(sol.x, ref, atol=1e-8)
         top, low = sol.levels
         assert top.satisfied
@@ -333,8 +336,8 @@ def test_random_against_independent_cascade(seed, shapes):
     n = 10
     levels = random_levels(rng, n, RANDOM_SHAPES[shapes])
     ref = quadprog_cascade(levels, n)
-    for algorithm in ALGORITHMS:
-        sol = solve(levels, algorithm=algorithm)
+    for backend, algorithm in SOLVERS:
+        sol = solve(levels, backend=backend, algorithm=algorithm)
         assert np.all(np.abs(sol.costs - ref) <= cost_tol(ref)), (algorithm, sol.costs, ref)
         # the reported costs are the costs at x
         np.testing.assert_allclose(sol.costs, [level_cost(lv, sol.x) for lv in levels],
@@ -359,18 +362,20 @@ def test_backends_and_algorithms_agree(backend, algorithm):
             assert a.violated.tolist() == b.violated.tolist()
 
 
+@pytest.mark.parametrize("backend", ["proxsuite", "native"])
 @pytest.mark.parametrize("seed", range(4))
-def test_lower_levels_never_raise_higher_costs(seed):
+def test_lower_levels_never_raise_higher_costs(seed, backend):
     rng = np.random.default_rng(200 + seed)
     levels = random_levels(rng, 8, RANDOM_SHAPES[seed % 3])
-    full = solve(levels).costs
+    full = solve(levels, backend=backend).costs
     for k in range(1, len(levels)):
-        truncated = solve(levels[:k]).costs
+        truncated = solve(levels[:k], backend=backend).costs
         assert np.all(np.abs(full[:k] - truncated) <= cost_tol(truncated))
 
 
-def test_persistent_solver_matches_fresh_solves():
-    solver = HierarchicalSolver("proxsuite", "basis")
+@pytest.mark.parametrize("backend", ["proxsuite", "native"])
+def test_persistent_solver_matches_fresh_solves(backend):
+    solver = HierarchicalSolver(backend, "basis")
     rng = np.random.default_rng(9)
     base = random_levels(rng, 12, RANDOM_SHAPES[0])
     for step in range(5):
@@ -381,15 +386,16 @@ def test_persistent_solver_matches_fresh_solves():
             for lv in base
         ]
         a = solver.solve(levels)
-        b = solve(levels)
+        b = solve(levels, backend=backend)
         np.testing.assert_allclose(a.costs, b.costs, rtol=1e-6, atol=1e-8)
         np.testing.assert_allclose(a.x, b.x, atol=1e-6)
 
 
-def test_solution_record():
+@pytest.mark.parametrize("backend", ["proxsuite", "native"])
+def test_solution_record(backend):
     levels = [Level(C=np.eye(3), lower=-np.ones(3), upper=np.ones(3), name="b"),
               Level(A=np.eye(3)[:2], b=[1.0, 2.0], name="a")]
-    sol = solve(levels)
+    sol = solve(levels, backend=backend)
     assert isinstance(sol, Solution)
     assert sol.x.shape == (3,)
     assert all(isinstance(lv, LevelReport) for lv in sol.levels)
@@ -402,7 +408,7 @@ def test_solution_record():
     assert sol.levels[0].active.tolist() == [0, 1]
     assert sol.levels[0].violated.size == 0
     np.testing.assert_allclose(sol.levels[1].cost, 1.0, atol=1e-9)
-    assert sol.backend == "proxsuite" and sol.algorithm == "basis"
+    assert sol.backend == backend and sol.algorithm == "basis"
     with pytest.raises(AttributeError):
         sol.levels[0].cost = 1.0  # frozen
 
@@ -441,10 +447,11 @@ BAD = [
 ]
 
 
+@pytest.mark.parametrize("backend", ["proxsuite", "native"])
 @pytest.mark.parametrize(("levels", "where", "what"), BAD)
-def test_malformed_levels_raise(levels, where, what):
+def test_malformed_levels_raise(levels, where, what, backend):
     with pytest.raises(hqp.InvalidLevel) as err:
-        solve(levels)
+        solve(levels, backend=backend)
     assert where in str(err.value)
     assert what in str(err.value)
     assert isinstance(err.value, hqp.HQPError) and isinstance(err.value, ValueError)

@@ -11,6 +11,7 @@ from hypothesis import strategies as st
 from hqp.solver import HierarchicalSolver, Level
 
 SOLVERS = {alg: HierarchicalSolver("proxsuite", alg) for alg in ("basis", "cascade")}
+SOLVERS["native"] = HierarchicalSolver("native")
 
 
 @st.composite
@@ -49,7 +50,7 @@ def hierarchies(draw):
 
 
 @settings(max_examples=50, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(levels=hierarchies(), algorithm=st.sampled_from(["basis", "cascade"]))
+@given(levels=hierarchies(), algorithm=st.sampled_from(["basis", "cascade", "native"]))
 def test_random_hierarchies_never_raise_nor_return_nan(levels, algorithm):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -58,3 +59,17 @@ def test_random_hierarchies_never_raise_nor_return_nan(levels, algorithm):
     for rep in sol.levels:
         assert np.isfinite(rep.cost) and rep.cost >= 0.0
         assert rep.sigma_min >= 0.0
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(levels=hierarchies())
+def test_native_core_matches_the_python_basis_algorithm(levels):
+    """The C++ core against its oracle: same level costs (contract tolerance), same x."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        ref = HierarchicalSolver("daqp").solve(levels)
+        sol = HierarchicalSolver("native").solve(levels)
+    tol = 1e-6 * np.maximum(1.0, ref.costs)
+    assert np.all(np.abs(sol.costs - ref.costs) <= tol), (sol.costs, ref.costs)
+    for a, b in zip(sol.levels, ref.levels):
+        assert a.satisfied == b.satisfied or abs(a.cost - b.cost) <= 1e-12

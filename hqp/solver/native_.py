@@ -52,7 +52,7 @@ def _is_vector(a: Any, m: int) -> bool:
 
 
 def fast_rows(levels: Sequence[Level], n_hint: int | None) -> tuple[list[tuple], int] | None:
-    """The levels as ``(A, b, C, lower, upper)`` float64 arrays without conversion or copy.
+    """Return the levels as ``(A, b, C, lower, upper)`` float64 arrays, without a copy.
 
     ``None`` when a level is not in that form already (lists, integers, a 1-D ``A``,
     ``b`` without ``A``...): the caller then converts and checks in Python.
@@ -113,7 +113,7 @@ def fast_rows(levels: Sequence[Level], n_hint: int | None) -> tuple[list[tuple],
 
 
 def checked_rows(checked: Sequence[Any]) -> list[tuple]:
-    """``(A, b, C, lower, upper)`` of levels converted by :func:`hqp.solver.level.check_level`."""
+    """Return ``(A, b, C, lower, upper)`` of levels checked by :func:`~hqp.solver.level.check_level`."""
     return [(lv.A, lv.b, lv.C, lv.lower, lv.upper) for lv in checked]
 
 

@@ -106,15 +106,16 @@ class PySolver {
  private:
   std::string run(Index n, Index L, bool forbid_malloc) {
 #ifdef HQP_CHECK_MALLOC
+    AssertionLog& log = assertion_log();
+    log.count = 0;
+    log.first.clear();
     set_malloc_allowed(!forbid_malloc);
-    try {
-      std::string error = hierarchy_.solve(n, L);
-      set_malloc_allowed(true);
-      return error;
-    } catch (const EigenAssertion& e) {
-      set_malloc_allowed(true);
-      return std::string("eigen assertion: ") + e.what();
+    std::string error = hierarchy_.solve(n, L);
+    set_malloc_allowed(true);
+    if (log.count) {
+      return "eigen assertion (" + std::to_string(log.count) + " in this solve): " + log.first;
     }
+    return error;
 #else
     (void)forbid_malloc;
     return hierarchy_.solve(n, L);

@@ -259,7 +259,8 @@ bool ActiveSetSolver::solve(const LevelRows& L, const CarriedRows& K, IVec& s, I
           grad_.setZero();
         }
         tmp_.resize(rk);
-        tmp_.noalias() = -(kqr_.Q().leftCols(rk).transpose() * grad_);
+        tmp_.noalias() = kqr_.Q().leftCols(rk).transpose() * grad_;
+        tmp_ = -tmp_;
         mu_.resize(nheld);
         kqr_.multipliers(tmp_, mu_);
         const double dtol =

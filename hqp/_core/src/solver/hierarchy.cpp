@@ -250,7 +250,8 @@ std::string Hierarchy::solve(Index n, Index user_levels) {
         slot.H.topLeftCorner(r, r).noalias() = slot.Ak.transpose() * slot.Ak;
         slot.g.resize(nq);
         slot.g.setZero();
-        slot.g.head(r).noalias() = -(slot.Ak.transpose() * slot.bk);
+        slot.g.head(r).noalias() = slot.Ak.transpose() * slot.bk;
+        slot.g.head(r) *= -1.0;
         slot.Cq.resize(mi + p, nq);
         slot.Cq.setZero();
         slot.qlo.resize(mi + p);

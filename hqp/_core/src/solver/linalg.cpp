@@ -73,7 +73,7 @@ const MatrixXd& PivotedQR::Q() {
       Q_.resize(r_, r_);
       Q_.setIdentity();
     } else {
-      form_q(qr_.matrixQR(), qr_.hCoeffs(), Q_, ws_);
+      form_q(qr_.matrixQR(), qr_.hCoeffs(), Q_, wsq_);
     }
     q_ready_ = true;
   }

@@ -5,16 +5,38 @@
 
 #ifdef HQP_CHECK_MALLOC
 // The checked build (hqp._core._ext_checked): Eigen's run-time allocation check reports
-// through eigen_assert, which throws instead of aborting, so a test can catch it.
-#include <stdexcept>
+// through eigen_assert, which here records the failure (count, first call stack) and lets
+// the operation go on (throwing from inside Eigen's allocator would leave objects half
+// resized), so a test can read what happened after the solve.
+#include <execinfo.h>
+
+#include <cstdlib>
+
+#include <string>
 namespace hqp {
-struct EigenAssertion : std::runtime_error {
-  using std::runtime_error::runtime_error;
+struct AssertionLog {
+  int count = 0;
+  std::string first;
 };
+inline AssertionLog& assertion_log() {
+  static thread_local AssertionLog log;
+  return log;
+}
+inline void eigen_assert_failed(const char* what) {
+  AssertionLog& log = assertion_log();
+  if (log.count++ == 0) {
+    void* frames[16];
+    const int n = backtrace(frames, 16);
+    char** names = backtrace_symbols(frames, n);
+    log.first = what;
+    for (int i = 1; names && i < n; ++i) log.first += std::string("\n  ") + names[i];
+    free(names);
+  }
+}
 }  // namespace hqp
 #define eigen_assert(x)                                                  \
   do {                                                                   \
-    if (!static_cast<bool>(x)) throw ::hqp::EigenAssertion(#x);          \
+    if (!static_cast<bool>(x)) ::hqp::eigen_assert_failed(#x);           \
   } while (false)
 #endif
 
@@ -80,7 +102,7 @@ class PivotedQR {
   MatrixXd Rsq_;
   Eigen::ColPivHouseholderQR<MatrixXd> lqr_;
   Eigen::JacobiSVD<MatrixXd> svd_;
-  VectorXd ws_, z_, c_;
+  VectorXd ws_, wsq_, z_, c_;  // ws_: one-column Householder workspace; wsq_: form_q
   Eigen::VectorXi perm_;
   Index m_ = 0, r_ = 0, rank_ = 0;
   bool q_ready_ = false;
