@@ -5,9 +5,6 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <cstdlib>
-#include <fstream>
-#include <iostream>
 #include <limits>
 
 namespace hqp {
@@ -270,12 +267,6 @@ std::string Hierarchy::solve(Index n, Index user_levels) {
           slot.qup.tail(p) = slot.gur;
         }
         ok = slot.qp.solve(slot.H, slot.g, slot.Cq, slot.qlo, slot.qup, slot.v);
-        if (!ok && std::getenv("HQP_NATIVE_DUMP")) {
-          std::ofstream f(std::getenv("HQP_NATIVE_DUMP"));
-          f.precision(17);
-          f << nq << " " << (mi + p) << "\n" << slot.H << "\n" << slot.g.transpose() << "\n"
-            << slot.Cq << "\n" << slot.qlo.transpose() << "\n" << slot.qup.transpose() << "\n";
-        }
         slot.y = slot.v.head(r);
         if (ws && slot.y.allFinite()) {
           // polish: the QP point's active set, solved exactly if it verifies
