@@ -113,7 +113,7 @@ def fast_rows(levels: Sequence[Level], n_hint: int | None) -> tuple[list[tuple],
 
 
 def checked_rows(checked: Sequence[Any]) -> list[tuple]:
-    """Return ``(A, b, C, lower, upper)`` of levels checked by ``check_level``.
+    """Return ``(A, b, C, lower, upper)`` of levels checked by ``check_level``."""
     return [(lv.A, lv.b, lv.C, lv.lower, lv.upper) for lv in checked]
 
 
