@@ -39,7 +39,7 @@ from hqp.bench import register_suite
 from hqp.bench.daqp_hier import daqp_hierarchy_data, solve_daqp_hierarchy
 from hqp.bench.method import measure
 from hqp.bench.problems import LevelSpec, random_hierarchy
-from hqp.solver import ALGORITHMS, HierarchicalSolver, Level, available_backends
+from hqp.solver import ALGORITHMS, HierarchicalSolver, Level, available_backends, supports
 
 N_VALUES = (20, 40, 80)
 LEVEL_COUNTS = (2, 3, 4, 5)
@@ -119,6 +119,10 @@ def _cycler(fn: Callable[[int], object], count: int) -> Callable[[], object]:
     return call
 
 
+NATIVE_PEER = "daqp"
+"""The Python backend that ``basis/native`` is compared with (the same QP library, DAQP)."""
+
+
 @register_suite("solver")
 def solver_suite(quick: bool = False, progress: Callable[[str], None] | None = None) -> list[dict]:
     """Run the solver suite; ``quick`` measures a small subset briefly (CI)."""
@@ -127,7 +131,7 @@ def solver_suite(quick: bool = False, progress: Callable[[str], None] | None = N
     budget = 0.03 if quick else 0.35
     min_reps = 3 if quick else 15
     backends = available_backends()
-    solvers = [f"{a}/{b}" for b in backends for a in ALGORITHMS] + ["daqp-hier"]
+    solvers = [f"{a}/{b}" for b in backends for a in ALGORITHMS if supports(b, a)] + ["daqp-hier"]
     configs = [(n, L, "mixed", None) for n in n_values for L in level_counts]
     configs.append((20 if quick else 40, 4, "light", None))
     if not quick:
@@ -202,7 +206,14 @@ def solver_suite(quick: bool = False, progress: Callable[[str], None] | None = N
             base_ms = by_name.get("basis/proxsuite", {}).get("median_ms")
             for r in group:
                 if r["solver"].startswith("basis/"):
-                    cascade = by_name.get("cascade/" + r["solver"].split("/", 1)[1])
+                    # native: against the Python algorithms on the same QP library (DAQP)
+                    bk = r["solver"].split("/", 1)[1]
+                    cascade = by_name.get("cascade/" + (NATIVE_PEER if bk == "native" else bk))
+                    if bk == "native" and f"basis/{NATIVE_PEER}" in by_name:
+                        py = by_name[f"basis/{NATIVE_PEER}"]
+                        r["speedup_vs_python_basis"] = round(py["median_ms"] / r["median_ms"], 3)
+                        r["cpu_speedup_vs_python_basis"] = round(
+                            py["cpu_median_ms"] / max(r["cpu_median_ms"], 1e-9), 3)
                     if cascade:
                         r["speedup_vs_cascade"] = round(cascade["median_ms"] / r["median_ms"], 3)
                         r["cpu_speedup_vs_cascade"] = round(

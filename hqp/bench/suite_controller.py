@@ -32,7 +32,7 @@ import numpy as np
 
 from hqp.bench.accuracy import ExcessTracker, level_costs
 from hqp.bench.interleave import Timing, interleaved
-from hqp.solver import ALGORITHMS, available_backends
+from hqp.solver import ALGORITHMS, available_backends, supports
 
 ROBOTS = ("paper-humanoid", "g1", "talos")
 """Robots of the suite."""
@@ -71,7 +71,8 @@ def configurations(backends: Sequence[str] | None = None,
                    algorithms: Sequence[str] = ALGORITHMS) -> list[str]:
     """Return the configuration names: ``hqp/<algorithm>/<backend>``, ``nullspace``, ``placo``."""
     bk = list(backends) if backends is not None else available_backends()
-    return [f"hqp/{a}/{b}" for a in algorithms for b in bk] + ["nullspace", "placo"]
+    return [f"hqp/{a}/{b}" for a in algorithms for b in bk if supports(b, a)] + [
+        "nullspace", "placo"]
 
 
 class _Stepper:

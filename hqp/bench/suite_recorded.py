@@ -32,7 +32,7 @@ from hqp.bench.accuracy import ExcessTracker, level_costs
 from hqp.bench.interleave import Timing, interleaved
 from hqp.bench.peers import DaqpHierarchy, law_to_x, nullspace_law_solve
 from hqp.bench.recorded import RecordedStep, available, load
-from hqp.solver import ALGORITHMS, HierarchicalSolver, available_backends
+from hqp.solver import ALGORITHMS, HierarchicalSolver, available_backends, supports
 
 
 def _cycler(steps: Sequence[RecordedStep], fn: Callable[[RecordedStep], object]
@@ -52,7 +52,7 @@ def configurations(backends: Sequence[str] | None = None, algorithms: Sequence[s
                    peers: bool = True) -> list[str]:
     """Names of the configurations measured (``<algorithm>/<backend>``, peers)."""
     bk = list(backends) if backends is not None else available_backends()
-    names = [f"{a}/{b}" for a in algorithms for b in bk]
+    names = [f"{a}/{b}" for a in algorithms for b in bk if supports(b, a)]
     if peers:
         names += ["daqp-hier", "nullspace"]
     return names
@@ -187,8 +187,12 @@ def _ratios(rows: list[dict[str, Any]]) -> None:
             if not m:
                 continue
             if r.get("algorithm") == "basis":
-                c = med.get(f"cascade/{r['backend']}")
+                # native: against the Python algorithms on the same QP library (DAQP)
+                bk = "daqp" if r["backend"] == "native" else r["backend"]
+                c = med.get(f"cascade/{bk}")
                 r["speedup_vs_cascade" + suffix] = round(c / m, 3) if c else None
+                if r["backend"] == "native" and med.get("basis/daqp"):
+                    r["speedup_vs_python_basis" + suffix] = round(med["basis/daqp"] / m, 3)
             if law:
                 r["over_nullspace" + suffix] = round(m / law, 3)
 

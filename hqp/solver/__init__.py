@@ -7,7 +7,13 @@
 True
 """
 
-from hqp.solver.backend import QPBackend, available_backends, known_backends, make_backend
+from hqp.solver.backend import (
+    QPBackend,
+    available_backends,
+    known_backends,
+    make_backend,
+    supports,
+)
 from hqp.solver.hierarchy import ALGORITHMS, HierarchicalSolver, solve
 from hqp.solver.level import Level
 from hqp.solver.solution import ROW_TOL, SATISFIED_COST, LevelReport, Solution
@@ -25,4 +31,5 @@ __all__ = [
     "known_backends",
     "make_backend",
     "solve",
+    "supports",
 ]

@@ -115,6 +115,11 @@ def available_backends() -> list[str]:
     return names
 
 
+def supports(backend: str, algorithm: str) -> bool:
+    """Whether ``HierarchicalSolver(backend, algorithm)`` exists (``native`` is basis only)."""
+    return backend != "native" or algorithm == "basis"
+
+
 def make_backend(name: str) -> QPBackend:
     """Instantiate the backend called ``name``.
 
