@@ -462,13 +462,13 @@ double Hierarchy::sigma_level(Index k) {
       ++j;
     }
     scale = std::max(scale, cmax);
-    s = &slot.sv.compute(slot.Msig);
+    s = &slot.sv.compute(slot.Msig, settings_.rank_tol, scale);
   } else if (slot.has_fact) {
     slot.svals.resize(std::min(slot.fact.rows(), slot.fact.cols()));
-    slot.fact.singular_values(slot.svals);
+    slot.fact.singular_values(slot.svals, settings_.rank_tol, scale);
     s = &slot.svals;
   } else {
-    s = &slot.sv.compute(slot.Ak);
+    s = &slot.sv.compute(slot.Ak, settings_.rank_tol, scale);
   }
   const double s0 = s->size() ? (*s)(0) : 0.0;
   return mth_singular(*s, m, r, settings_.rank_tol * std::max(s0, scale));

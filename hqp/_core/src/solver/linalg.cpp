@@ -136,13 +136,33 @@ void PivotedQR::multipliers(const CVecRef& c, VecRef mu) {
   for (Index i = 0; i < k; ++i) mu(perm_(i)) = z_(i);
 }
 
-void PivotedQR::singular_values(VecRef s) {
+void PivotedQR::singular_values(VecRef s, double rank_tol, double scale) {
   const Index d = std::min(m_, r_);
   if (d == 0) return;
   Rsq_.resize(d, m_);
   Rsq_ = qr_.matrixQR().topRows(d).triangularView<Eigen::Upper>();
-  svd_.compute(Rsq_);
-  s = svd_.singularValues();
+  sv_.compute(Rsq_, s, rank_tol, scale);
+}
+
+void TriangularSingularValues::compute(const MatrixXd& T, VecRef s, double rank_tol,
+                                       double scale) {
+  const Index d = T.rows();
+  if (d == 0) return;
+  G_.resize(d, d);
+  G_.noalias() = T * T.transpose();
+  eig_.compute(G_, Eigen::EigenvaluesOnly);
+  const VectorXd& lam = eig_.eigenvalues();  // ascending
+  for (Index i = 0; i < d; ++i) s(i) = std::sqrt(std::max(lam(d - 1 - i), 0.0));
+  if (eig_.info() == Eigen::Success && s(d - 1) >= 1e-6 * s(0)) return;
+  if (eig_.info() == Eigen::Success && rank_tol > 0.0 && T.cols() == d &&
+      T.diagonal().cwiseAbs().minCoeff() <= rank_tol * std::max(s(0), scale)) {
+    s(d - 1) = 0.0;
+    return;
+  }
+  {
+    svd_.compute(T);
+    s = svd_.singularValues();
+  }
 }
 
 void LeastSquares::solve(const CMatRef& M, const CVecRef& rhs, double rank_tol, double scale,
@@ -161,7 +181,7 @@ void LeastSquares::solve(const CMatRef& M, const CVecRef& rhs, double rank_tol, 
   qr_.lstsq(rhs, y);
 }
 
-const VectorXd& SingularValues::compute(const CMatRef& M) {
+const VectorXd& SingularValues::compute(const CMatRef& M, double rank_tol, double scale) {
   const Index m = M.rows();
   s_.resize(m);
   if (m == 0) return s_;
@@ -170,8 +190,7 @@ const VectorXd& SingularValues::compute(const CMatRef& M) {
   qr_.compute(Mt_);
   R_.resize(m, m);
   R_ = qr_.matrixQR().topRows(m).triangularView<Eigen::Upper>();
-  svd_.compute(R_);
-  s_ = svd_.singularValues();
+  sv_.compute(R_, s_, rank_tol, scale);
   return s_;
 }
 

@@ -42,6 +42,7 @@ inline void eigen_assert_failed(const char* what) {
 
 #include <Eigen/Core>
 #include <Eigen/QR>
+#include <Eigen/Eigenvalues>
 #include <Eigen/SVD>
 
 namespace hqp {
@@ -56,6 +57,22 @@ using CVecRef = Eigen::Ref<const VectorXd>;
 
 /// Whether Eigen may allocate on the heap (checked build only; no-op otherwise).
 void set_malloc_allowed(bool allowed);
+
+/// Singular values of a matrix T (d, c), d <= c, largest first: eigenvalues of T T^T
+/// (tridiagonal QR, O(d^3) once), and a Jacobi SVD of T only where the smallest is below
+/// 1e-6 of the largest (where squaring would lose its digits: eps * s_max^2 / s_min).
+class TriangularSingularValues {
+ public:
+  /// `rank_tol`, `scale`: a square triangular T whose smallest diagonal entry is at most
+  /// rank_tol * max(s_max, scale) has s_min below that threshold too (s_min <= min |T_ii|):
+  /// s(d-1) is then set to 0 without the Jacobi SVD (the rank decision the caller makes).
+  void compute(const MatrixXd& T, VecRef s, double rank_tol = 0.0, double scale = 0.0);
+
+ private:
+  MatrixXd G_;
+  Eigen::SelfAdjointEigenSolver<MatrixXd> eig_;
+  Eigen::JacobiSVD<MatrixXd> svd_;
+};
 
 /// Rank-revealing QR of a matrix M (m, r) through M^T P = Q R (column pivoting on M^T, i.e.
 /// on the rows of M, as LAPACK's dgeqp3 in the Python reference).
@@ -87,7 +104,7 @@ class PivotedQR {
   /// Index of the i-th pivoted row of M.
   Index pivot(Index i) const { return perm_(i); }
   /// Singular values of M (those of R), largest first, into s (min(m, r),).
-  void singular_values(VecRef s);
+  void singular_values(VecRef s, double rank_tol = 0.0, double scale = 0.0);
   /// The upper-left (rank, rank) block of R.
   Eigen::Block<const MatrixXd> R11() const {
     return qr_.matrixQR().topLeftCorner(rank_, rank_);
@@ -101,7 +118,7 @@ class PivotedQR {
   MatrixXd L_;
   MatrixXd Rsq_;
   Eigen::ColPivHouseholderQR<MatrixXd> lqr_;
-  Eigen::JacobiSVD<MatrixXd> svd_;
+  TriangularSingularValues sv_;
   VectorXd ws_, wsq_, z_, c_;  // ws_: one-column Householder workspace; wsq_: form_q
   Eigen::VectorXi perm_;
   Index m_ = 0, r_ = 0, rank_ = 0;
@@ -127,12 +144,12 @@ class LeastSquares {
 /// factor of M^T.
 class SingularValues {
  public:
-  const VectorXd& compute(const CMatRef& M);
+  const VectorXd& compute(const CMatRef& M, double rank_tol = 0.0, double scale = 0.0);
 
  private:
   Eigen::ColPivHouseholderQR<MatrixXd> qr_;  // unblocked: no temporaries
   MatrixXd Mt_, R_;
-  Eigen::JacobiSVD<MatrixXd> svd_;
+  TriangularSingularValues sv_;
   VectorXd s_;
 };
 
