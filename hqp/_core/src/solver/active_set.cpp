@@ -166,31 +166,40 @@ bool ActiveSetSolver::solve(const LevelRows& L, const CarriedRows& K, IVec& s, I
       ndep = nheld - rk;
       dep_g_.resize(ndep);
       for (Index j = 0; j < ndep; ++j) dep_g_(j) = held_(kqr_.pivot(rk + j));
-      const MatrixXd& Q = kqr_.Q();
       const Index nf = nv - rk;
+      // Q = [Q1 Q2] of the held rows' QR, applied as reflectors (never formed)
       if (mrows && nf > 0) {
-        MQ_.resize(mrows, nf);
-        MQ_.noalias() = M_ * Q.rightCols(nf);
+        MQ_.resize(mrows, nv);
+        MQ_ = M_;
+        kqr_.apply_q_right(MQ_);  // M Q; its last nf columns are M Q2
         rhs_.resize(mrows);
         rhs_ = d_;
         rhs_.noalias() -= M_ * vp_;
         t_.resize(nf);
         if (ref == nullptr) {
-          ls_.solve(MQ_, rhs_, rank_tol, scale, t_);
+          ls_.solve(MQ_.rightCols(nf), rhs_, rank_tol, scale, t_);
         } else {
+          tmp_.resize(nv);
+          tmp_ = *ref;
+          kqr_.apply_qt(tmp_);
           zr_.resize(nf);
-          zr_.noalias() = Q.rightCols(nf).transpose() * (*ref);
-          rhs_.noalias() -= MQ_ * zr_;
-          ls_.solve(MQ_, rhs_, rank_tol, scale, t_);
+          zr_ = tmp_.tail(nf);
+          rhs_.noalias() -= MQ_.rightCols(nf) * zr_;
+          ls_.solve(MQ_.rightCols(nf), rhs_, rank_tol, scale, t_);
           t_ += zr_;
         }
-        v = vp_;
-        v.noalias() += Q.rightCols(nf) * t_;
+        tmp_.resize(nv);
+        tmp_.head(rk).setZero();
+        tmp_.tail(nf) = t_;
+        kqr_.apply_q(tmp_);
+        v = vp_ + tmp_;
       } else if (nf > 0 && ref != nullptr) {
-        zr_.resize(nf);
-        zr_.noalias() = Q.rightCols(nf).transpose() * (*ref);
-        v = vp_;
-        v.noalias() += Q.rightCols(nf) * zr_;
+        tmp_.resize(nv);
+        tmp_ = *ref;
+        kqr_.apply_qt(tmp_);
+        tmp_.head(rk).setZero();
+        kqr_.apply_q(tmp_);
+        v = vp_ + tmp_;
       } else {
         v = vp_;
       }
@@ -258,11 +267,11 @@ bool ActiveSetSolver::solve(const LevelRows& L, const CarriedRows& K, IVec& s, I
         } else {
           grad_.setZero();
         }
-        tmp_.resize(rk);
-        tmp_.noalias() = kqr_.Q().leftCols(rk).transpose() * grad_;
-        tmp_ = -tmp_;
+        tmp_.resize(nv);
+        tmp_ = -grad_;
+        kqr_.apply_qt(tmp_);  // -(Q^T grad); its first rk entries are -(Q1^T grad)
         mu_.resize(nheld);
-        kqr_.multipliers(tmp_, mu_);
+        kqr_.multipliers(tmp_.head(rk), mu_);
         const double dtol =
             M_.size() ? kDualTol * std::max(1.0, max_abs(M_) * std::max(1.0, d_.cwiseAbs().maxCoeff()))
                       : kDualTol;

@@ -364,7 +364,7 @@ std::string Hierarchy::solve(Index n, Index user_levels) {
         slot.Z.resize(n, 0);
       } else {
         PivotedQR& f = null == Null::kFact ? slot.fact : slot.null_qr;
-        const auto N = f.null();
+        const MatrixXd& N = f.null();
         slot.Z.resize(n, N.cols());
         if (Z)
           slot.Z.noalias() = (*Z) * N;

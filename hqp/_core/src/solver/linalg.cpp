@@ -33,6 +33,7 @@ void PivotedQR::factor(const CMatRef& M) {
   Mt_.resize(r_, m_);
   Mt_.noalias() = M.transpose();
   q_ready_ = false;
+  n_ready_ = false;
   perm_.resize(m_);
   if (m_ == 0 || r_ == 0) {
     for (Index i = 0; i < m_; ++i) perm_(i) = i;
@@ -80,6 +81,57 @@ const MatrixXd& PivotedQR::Q() {
   return Q_;
 }
 
+const MatrixXd& PivotedQR::null() {
+  if (!n_ready_) {
+    const Index c = r_ - rank_;
+    N_.resize(r_, c);
+    N_.setZero();
+    N_.bottomRows(c).setIdentity();
+    if (m_ && r_) {
+      const auto& QR = qr_.matrixQR();
+      const auto& tau = qr_.hCoeffs();
+      wsn_.resize(c);
+      for (Index i = tau.size() - 1; i >= 0; --i) {
+        N_.bottomRows(r_ - i).applyHouseholderOnTheLeft(QR.col(i).tail(r_ - i - 1), tau(i),
+                                                        wsn_.data());
+      }
+    }
+    n_ready_ = true;
+  }
+  return N_;
+}
+
+void PivotedQR::apply_q(VecRef v) {
+  if (!m_ || !r_) return;
+  const auto& QR = qr_.matrixQR();
+  const auto& tau = qr_.hCoeffs();
+  ws_.resize(1);
+  for (Index i = tau.size() - 1; i >= 0; --i) {
+    v.tail(r_ - i).applyHouseholderOnTheLeft(QR.col(i).tail(r_ - i - 1), tau(i), ws_.data());
+  }
+}
+
+void PivotedQR::apply_qt(VecRef v) {
+  if (!m_ || !r_) return;
+  const auto& QR = qr_.matrixQR();
+  const auto& tau = qr_.hCoeffs();
+  ws_.resize(1);
+  for (Index i = 0; i < tau.size(); ++i) {
+    v.tail(r_ - i).applyHouseholderOnTheLeft(QR.col(i).tail(r_ - i - 1), tau(i), ws_.data());
+  }
+}
+
+void PivotedQR::apply_q_right(MatRef A) {
+  if (!m_ || !r_) return;
+  const auto& QR = qr_.matrixQR();
+  const auto& tau = qr_.hCoeffs();
+  wsr_.resize(A.rows());
+  for (Index i = 0; i < tau.size(); ++i) {
+    A.rightCols(r_ - i).applyHouseholderOnTheRight(QR.col(i).tail(r_ - i - 1), tau(i),
+                                                    wsr_.data());
+  }
+}
+
 void PivotedQR::lstsq(const CVecRef& rhs, VecRef y) {
   const Index k = rank_;
   if (k == 0) {
@@ -111,7 +163,9 @@ void PivotedQR::lstsq(const CVecRef& rhs, VecRef y) {
     const auto& P2 = lqr_.colsPermutation().indices();
     for (Index i = 0; i < k; ++i) z_(P2(i)) = c_(i);
   }
-  y.noalias() = Q().leftCols(k) * z_;
+  y.head(k) = z_;
+  y.tail(r_ - k).setZero();
+  apply_q(y);
 }
 
 void PivotedQR::particular(const CVecRef& kv, VecRef y) {
@@ -123,7 +177,9 @@ void PivotedQR::particular(const CVecRef& kv, VecRef y) {
   z_.resize(k);
   for (Index i = 0; i < k; ++i) z_(i) = kv(perm_(i));
   qr_.matrixQR().topLeftCorner(k, k).transpose().triangularView<Eigen::Lower>().solveInPlace(z_);
-  y.noalias() = Q().leftCols(k) * z_;
+  y.head(k) = z_;
+  y.tail(r_ - k).setZero();
+  apply_q(y);
 }
 
 void PivotedQR::multipliers(const CVecRef& c, VecRef mu) {

@@ -88,12 +88,17 @@ class PivotedQR {
   Index rank() const { return rank_; }
   Index rows() const { return m_; }  ///< m
   Index cols() const { return r_; }  ///< r
-  /// Full orthogonal factor Q (r, r), formed on first use after compute.
+  /// Full orthogonal factor Q (r, r), formed on first use after compute (tests only: the
+  /// solver applies the reflectors instead).
   const MatrixXd& Q();
-  /// Orthonormal basis (r, r - rank) of the null space of M.
-  Eigen::Block<const MatrixXd, Eigen::Dynamic, Eigen::Dynamic, true> null() {
-    return Q().rightCols(r_ - rank_);
-  }
+  /// Orthonormal basis (r, r - rank) of the null space of M: Q's trailing columns, formed
+  /// from the reflectors alone.
+  const MatrixXd& null();
+  /// v := Q v and v := Q^T v for v (r,).
+  void apply_q(VecRef v);
+  void apply_qt(VecRef v);
+  /// A := A Q for A (rows, r).
+  void apply_q_right(MatRef A);
   /// Least-squares solution y (r,) of M y ~ rhs, minimum norm up to the rank cut.
   void lstsq(const CVecRef& rhs, VecRef y);
   /// y (r,) = Q1 R11^-T k[piv[:rank]] (the minimum-norm point of the first `rank` pivoted
@@ -114,15 +119,16 @@ class PivotedQR {
   void factor(const CMatRef& M);
   Eigen::ColPivHouseholderQR<MatrixXd> qr_;
   MatrixXd Mt_;
-  MatrixXd Q_;
+  MatrixXd Q_, N_;
   MatrixXd L_;
   MatrixXd Rsq_;
   Eigen::ColPivHouseholderQR<MatrixXd> lqr_;
   TriangularSingularValues sv_;
-  VectorXd ws_, wsq_, z_, c_;  // ws_: one-column Householder workspace; wsq_: form_q
+  VectorXd ws_, wsq_, wsn_, wsr_, z_, c_, zf_;  // ws_: one-column Householder workspace; wsq_: form_q
   Eigen::VectorXi perm_;
   Index m_ = 0, r_ = 0, rank_ = 0;
   bool q_ready_ = false;
+  bool n_ready_ = false;
 };
 
 /// Form the full orthogonal factor (rows, rows) of a Householder QR held in `qr`
