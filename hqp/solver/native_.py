@@ -129,11 +129,10 @@ def make_solution(out: Any, levels: Sequence[Any], total: float) -> Solution:
     level_reports = []
     timings: dict[str, float] = {}
     for k, (rep, lv) in enumerate(zip(reports, levels)):
-        cost, satisfied, sigma, res, viol, state, seconds = rep
+        cost, satisfied, sigma, res, viol, active, violated, seconds = rep
         level_reports.append(LevelReport(
-            name=str(lv.name), cost=cost, satisfied=satisfied,
-            active=np.flatnonzero(state), violated=np.flatnonzero(state == 2),
-            sigma_min=sigma, residual_eq=res, violation_in=viol))
+            name=str(lv.name), cost=cost, satisfied=satisfied, active=active,
+            violated=violated, sigma_min=sigma, residual_eq=res, violation_in=viol))
         timings[f"level_{k}"] = seconds
     timings["final"] = final_s
     timings["total"] = total

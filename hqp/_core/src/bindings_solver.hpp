@@ -4,7 +4,12 @@
 
 #include <nanobind/eigen/dense.h>
 #include <nanobind/nanobind.h>
+#include <nanobind/ndarray.h>
 #include <nanobind/stl/string.h>
+
+#include <algorithm>
+#include <cstdint>
+#include <vector>
 
 #include <cmath>
 #include <memory>
@@ -17,6 +22,16 @@ namespace hqp {
 namespace nb = nanobind;
 using DMat = nb::DRef<const Eigen::MatrixXd>;
 using DVec = nb::DRef<const Eigen::VectorXd>;
+
+/// A new NumPy array (owning a copy of `n` values), without a Python-level copy.
+template <typename T>
+nb::object to_numpy(const T* data, std::size_t n) {
+  T* buf = new T[n > 0 ? n : 1];
+  std::copy(data, data + n, buf);
+  nb::capsule owner(buf, [](void* q) noexcept { delete[] static_cast<T*>(q); });
+  return nb::cast(nb::ndarray<nb::numpy, T, nb::ndim<1>>(buf, {n}, owner),
+                  nb::rv_policy::reference);
+}
 
 /// The first malformed level (-1: none): shapes, NaN or inf in A, b, C, NaN in a bound,
 /// lower > upper, +inf lower, -inf upper. Python explains it (hqp.solver.level).
@@ -93,12 +108,22 @@ class PySolver {
     nb::list reports;
     for (std::size_t j = 0; j < L; ++j) {
       const LevelResult& r = res[j];
-      reports.append(nb::make_tuple(r.cost, r.satisfied, r.sigma_min, Eigen::VectorXd(r.residual_eq),
-                                    Eigen::VectorXd(r.violation_in), Eigen::VectorXi(r.state),
-                                    r.seconds));
+      active_.clear();
+      violated_.clear();
+      for (Index i = 0; i < r.state.size(); ++i) {
+        if (r.state(i)) active_.push_back(i);
+        if (r.state(i) == 2) violated_.push_back(i);
+      }
+      reports.append(nb::make_tuple(
+          r.cost, r.satisfied, r.sigma_min,
+          to_numpy(r.residual_eq.data(), std::size_t(r.residual_eq.size())),
+          to_numpy(r.violation_in.data(), std::size_t(r.violation_in.size())),
+          to_numpy(active_.data(), active_.size()), to_numpy(violated_.data(), violated_.size()),
+          r.seconds));
     }
-    return nb::make_tuple(Eigen::VectorXd(hierarchy_.x()), reports, hierarchy_.qp_count(),
-                          hierarchy_.final_seconds());
+    const Eigen::VectorXd& x = hierarchy_.x();
+    return nb::make_tuple(to_numpy(x.data(), std::size_t(x.size())), reports,
+                          hierarchy_.qp_count(), hierarchy_.final_seconds());
   }
 
   void reset() { hierarchy_.reset(); }
@@ -123,6 +148,7 @@ class PySolver {
   }
 
   Hierarchy hierarchy_;
+  std::vector<int64_t> active_, violated_;
 };
 
 inline void bind_solver(nb::module_& m) {
