@@ -4,6 +4,8 @@
 #include <cmath>
 #include <limits>
 
+#include <proxsuite/proxqp/dense/dense.hpp>
+
 extern "C" {
 #include "api.h"
 }
@@ -72,6 +74,29 @@ bool LevelQP::daqp(double margin, VectorXd& v) {
   return false;
 }
 
+bool LevelQP::proxqp(VectorXd& v) {
+  // the last resort: ProxQP (header-only, from the proxsuite wheel), an augmented-Lagrangian
+  // method that keeps going on the nearly degenerate feasible sets where DAQP's dual steps
+  // report infeasibility (in the Python reference, quadprog plays this part)
+  namespace pq = proxsuite::proxqp;
+  const Index n = H_.rows(), m = A_.rows();
+  pq::dense::QP<double> qp(n, 0, m);
+  qp.settings.eps_abs = 1e-9;
+  qp.settings.eps_rel = 0.0;
+  qp.settings.max_iter = 10000;
+  qp.settings.eps_primal_inf = 1e-12;
+  qp.settings.eps_dual_inf = 1e-12;
+  qp.settings.verbose = false;
+  MatrixXd H = H_, C = A_;
+  VectorXd lo = lo_.cwiseMax(-1e20), up = up_.cwiseMin(1e20);
+  qp.init(H, g_, proxsuite::nullopt, proxsuite::nullopt, C, lo, up);
+  qp.solve();
+  if (qp.results.info.status != pq::QPSolverOutput::PROXQP_SOLVED || !qp.results.x.allFinite())
+    return false;
+  v = qp.results.x;
+  return true;
+}
+
 bool LevelQP::solve(const CMatRef& H, const CVecRef& g, const CMatRef& C, const CVecRef& lo,
                     const CVecRef& up, VectorXd& v) {
   // normalise the cost: the minimiser does not change, DAQP's tolerances then mean the same
@@ -105,6 +130,10 @@ bool LevelQP::solve(const CMatRef& H, const CVecRef& g, const CMatRef& C, const 
       return true;
     }
     if (!v.allFinite()) v = v2;
+  }
+  if (!v.allFinite() && proxqp(v2)) {
+    v = v2;
+    return true;
   }
   return false;
 }

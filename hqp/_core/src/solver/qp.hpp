@@ -1,6 +1,7 @@
 // The compiled QP of the native solver's cold and degenerate levels: DAQP (vendored C
 // sources), with the Python daqp backend's settings and the hierarchy's retries on
-// relaxed bounds (hqp/solver/daqp_.py, hqp.solver.hierarchy._qp).
+// relaxed bounds (hqp/solver/daqp_.py, hqp.solver.hierarchy._qp); where nothing finite
+// comes back, ProxQP's header-only dense solver (proxsuite wheel) as the last resort.
 #pragma once
 
 #include <vector>
@@ -20,6 +21,7 @@ class LevelQP {
 
  private:
   bool daqp(double margin, VectorXd& v);
+  bool proxqp(VectorXd& v);
   Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> H_, A_;
   VectorXd g_, lo_, up_, bu_, bl_, lam_;
   std::vector<int> sense_;
