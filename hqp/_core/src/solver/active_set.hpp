@@ -9,6 +9,8 @@
 
 #include <vector>
 
+#include <Eigen/Cholesky>
+
 #include "solver/linalg.hpp"
 
 namespace hqp {
@@ -48,8 +50,9 @@ class ActiveSetSolver {
   IVec sel_, held_, wp_, s_new_, w_new_, dep_g_, free_;
   std::vector<IVec> seen_s_, seen_w_;
   // NNLS workspace
-  MatrixXd nn_A_, nn_P_;
-  VectorXd nn_x_, nn_w_, nn_z_, nn_b_;
+  MatrixXd nn_A_, nn_P_, nn_G_;
+  VectorXd nn_x_, nn_w_, nn_z_, nn_b_, nn_g_;
+  Eigen::LDLT<MatrixXd> nn_ldlt_;
   IVec nn_set_;
 };
 
