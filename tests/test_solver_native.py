@@ -31,7 +31,11 @@ def test_recorded_step_matches_the_python_basis_algorithm(index):
     """Level costs against the Python basis algorithm on its three exact QP backends.
 
     Every level but the last: within 1e-9 of max(1, cost), or within the Python backends'
-    own spread where that is wider. The last (posture) level: the contract's 1e-6. It is
+    own spread where that is wider; 1e-8 on levels left unsatisfied (cost above 1): there a
+    carried row moved by its 1e-9 margin (CARRY_MARGIN, by design) changes the cost to first
+    order (2 r^T J dx), and the two implementations were measured 1.1e-9 apart on screwgun's
+    operational level (cost 1.6e4), by memory alignment from one process to the next.
+    The last (posture) level: the contract's 1e-6. It is
     ill-conditioned on these steps (more rows than free directions, sigma_min 0): a 1e-15
     change of the levels above moves it by ~1e-5 relative, and the Python backends differ
     there among themselves by up to 3.9e-7 (reach, paper-humanoid); 1e-9 is not a property
@@ -46,7 +50,7 @@ def test_recorded_step_matches_the_python_basis_algorithm(index):
     scale = np.maximum(1.0, costs[0])
     spread = costs.max(axis=0) - costs.min(axis=0)
     gap = np.maximum(sol.costs - costs.max(axis=0), costs.min(axis=0) - sol.costs)
-    allowed = np.maximum(1e-9 * scale, spread) + 1e-15
+    allowed = np.maximum(np.where(costs[0] > 1.0, 1e-8, 1e-9) * scale, spread) + 1e-15
     np.testing.assert_array_less(gap[:-1], allowed[:-1])
     np.testing.assert_array_less(np.abs(sol.costs - costs[0]), 1e-6 * scale)  # contract
     # the reports' sigma_min: the same numbers (0 where below the rank threshold) where the

@@ -45,7 +45,7 @@ class ActiveSetSolver {
   bool signed_multipliers(Index nheld, double dtol);
   PivotedQR kqr_;
   LeastSquares ls_;
-  MatrixXd M_, Kh_, MQ_, Kt_;
+  MatrixXd M_, Kh_, MQ_;
   VectorXd d_, kh_, vp_, rhs_, zr_, t_, cv_, gv_, grad_, res_, mu_, tmp_;
   IVec sel_, held_, wp_, s_new_, w_new_, dep_g_, free_;
   std::vector<IVec> seen_s_, seen_w_;

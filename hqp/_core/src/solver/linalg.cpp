@@ -14,25 +14,11 @@ void set_malloc_allowed(bool allowed) {
 #endif
 }
 
-void form_q(const MatrixXd& qr, const VectorXd& tau, MatrixXd& Q, VectorXd& ws) {
-  const Index rows = qr.rows();
-  const Index vecs = std::min<Index>(tau.size(), std::min(qr.rows(), qr.cols()));
-  Q.resize(rows, rows);
-  Q.setIdentity();
-  ws.resize(rows);
-  for (Index k = vecs - 1; k >= 0; --k) {
-    const Index corner = rows - k;
-    Q.bottomRightCorner(corner, corner)
-        .applyHouseholderOnTheLeft(qr.col(k).tail(rows - k - 1), tau(k), ws.data());
-  }
-}
-
 void PivotedQR::factor(const CMatRef& M) {
   m_ = M.rows();
   r_ = M.cols();
   Mt_.resize(r_, m_);
   Mt_.noalias() = M.transpose();
-  q_ready_ = false;
   n_ready_ = false;
   perm_.resize(m_);
   if (m_ == 0 || r_ == 0) {
@@ -66,19 +52,6 @@ void PivotedQR::compute_relative(const CMatRef& M, double rank_tol) {
   for (Index i = 0; i < d; ++i) {
     if (std::abs(R(i, i)) > rank_tol * top) ++rank_;
   }
-}
-
-const MatrixXd& PivotedQR::Q() {
-  if (!q_ready_) {
-    if (m_ == 0 || r_ == 0) {
-      Q_.resize(r_, r_);
-      Q_.setIdentity();
-    } else {
-      form_q(qr_.matrixQR(), qr_.hCoeffs(), Q_, wsq_);
-    }
-    q_ready_ = true;
-  }
-  return Q_;
 }
 
 const MatrixXd& PivotedQR::null() {

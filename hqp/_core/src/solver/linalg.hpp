@@ -88,9 +88,6 @@ class PivotedQR {
   Index rank() const { return rank_; }
   Index rows() const { return m_; }  ///< m
   Index cols() const { return r_; }  ///< r
-  /// Full orthogonal factor Q (r, r), formed on first use after compute (tests only: the
-  /// solver applies the reflectors instead).
-  const MatrixXd& Q();
   /// Orthonormal basis (r, r - rank) of the null space of M: Q's trailing columns, formed
   /// from the reflectors alone.
   const MatrixXd& null();
@@ -119,22 +116,17 @@ class PivotedQR {
   void factor(const CMatRef& M);
   Eigen::ColPivHouseholderQR<MatrixXd> qr_;
   MatrixXd Mt_;
-  MatrixXd Q_, N_;
+  MatrixXd N_;
   MatrixXd L_;
   MatrixXd Rsq_;
   Eigen::ColPivHouseholderQR<MatrixXd> lqr_;
   TriangularSingularValues sv_;
-  VectorXd ws_, wsq_, wsn_, wsr_, z_, c_, zf_;  // ws_: one-column Householder workspace; wsq_: form_q
+  VectorXd ws_, wsn_, wsr_, z_, c_;  // ws_, wsn_, wsr_: Householder workspaces (vector, N_, rows)
   Eigen::VectorXi perm_;
   Index m_ = 0, r_ = 0, rank_ = 0;
-  bool q_ready_ = false;
   bool n_ready_ = false;
 };
 
-/// Form the full orthogonal factor (rows, rows) of a Householder QR held in `qr`
-/// (reflectors below the diagonal, coefficients `tau`), without Eigen's blocked path
-/// (which allocates a temporary for more than 48 reflectors).
-void form_q(const MatrixXd& qr, const VectorXd& tau, MatrixXd& Q, VectorXd& ws);
 
 /// Minimum-norm least squares of M y ~ rhs (the C++ twin of hqp.solver.linalg.lstsq):
 /// pivoted QR with the threshold rank_tol * max(|R_00|, scale).
