@@ -23,7 +23,8 @@ from hqp.errors import HQPError
 
 if TYPE_CHECKING:
     from hqp.robots import Robot
-    from hqp.sim.run import Event, Log, Push
+    from hqp.sim.loop import Event, Push
+    from hqp.sim.run import Log
     from hqp.sim.simulator import Simulator
 
 logger = logging.getLogger(__name__)

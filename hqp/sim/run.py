@@ -1,82 +1,29 @@
-"""Closed loop: simulator state -> (noise, delay) -> controller -> torques -> simulator.
+"""A controller in MuJoCo, logged: :func:`simulate` and its :class:`Log`.
 
-:func:`simulate` runs a controller on a robot in MuJoCo for a duration, applies events at given
-times (pushes on the base, changes of goals, tasks and contacts), and returns a :class:`Log` of
-what happened, read from MuJoCo where it concerns contacts (which geoms touch the floor, slip
-and lift-off of the feet, centre of pressure) and from the controller's commands otherwise
-(torques, task errors, feasibility flags).
+:func:`simulate` runs a controller on a robot through the closed loop of :mod:`hqp.sim.loop`
+(pushes on the base, timed changes of goals, tasks and contacts, noise and delay), and returns
+a :class:`Log` of what happened, read from MuJoCo where it concerns contacts (which geoms
+touch the floor, slip and lift-off of the feet, centre of pressure) and from the controller's
+commands otherwise (torques, task errors, feasibility flags).
 """
 
 from __future__ import annotations
 
-import collections
-import logging
-import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from hqp.errors import InvalidInput, check_array
-from hqp.model import RobotState
-from hqp.sim.simulator import FALL_HEIGHT_RATIO, Simulator, inside_polygon
+from hqp.errors import InvalidInput
+from hqp.sim.loop import Event, Noise, Outcome, Push, Step, closed_loop
+from hqp.sim.simulator import Simulator, inside_polygon
 
 if TYPE_CHECKING:
     from hqp.controller import Controller
     from hqp.robots import Robot
 
-logger = logging.getLogger(__name__)
-
-
-@dataclass(frozen=True)
-class Push:
-    """A horizontal (or any) force on the floating base during an interval.
-
-    Attributes:
-        t: Start [s].
-        force: World force ``(3,)`` [N] applied at the base body's centre of mass.
-        duration: Length of the push [s].
-
-    """
-
-    t: float
-    force: tuple[float, float, float]
-    duration: float = 0.1
-
-
-@dataclass(frozen=True)
-class Event:
-    """A callable run once at a time: ``action(sim, controller, t)``.
-
-    Use it to move goals, add or remove tasks, make or release contacts.
-
-    Attributes:
-        t: Time [s] at which it runs (at the first control step with ``time >= t``).
-        action: The callable.
-        name: A label for the log.
-
-    """
-
-    t: float
-    action: Callable[[Simulator, Any, float], None]
-    name: str = ""
-
-
-@dataclass(frozen=True)
-class Noise:
-    """Gaussian measurement noise added to the state the controller sees.
-
-    Attributes:
-        q_std: Standard deviation on actuated joint positions [rad] and base position [m].
-        v_std: Standard deviation on every velocity [rad/s or m/s].
-        seed: Seed of the generator (runs are deterministic).
-
-    """
-
-    q_std: float = 0.0
-    v_std: float = 0.0
-    seed: int = 0
+__all__ = ["Event", "Log", "Noise", "Push", "simulate"]
 
 
 @dataclass
@@ -202,15 +149,76 @@ class Log:
         }
 
 
-def _noisy(state: RobotState, noise: Noise, rng: np.random.Generator, nq_base: int) -> RobotState:
-    q = state.q.copy()
-    v = state.v.copy()
-    if noise.q_std > 0.0:
-        q[:3] += rng.normal(scale=noise.q_std, size=3)
-        q[nq_base:] += rng.normal(scale=noise.q_std, size=q.size - nq_base)
-    if noise.v_std > 0.0:
-        v += rng.normal(scale=noise.v_std, size=v.size)
-    return RobotState(q=q, v=v, t=state.t, contacts=state.contacts, wrenches=state.wrenches)
+class _Recorder:
+    """The ``before_step`` hook of :func:`simulate`: one row of the :class:`Log` per step."""
+
+    def __init__(self, sim: Simulator, controller: Any,
+                 on_step: Callable[[Simulator, Any], None] | None) -> None:
+        self.sim = sim
+        self.controller = controller
+        self.on_step = on_step
+        self.rows: dict[str, list] = {k: [] for k in (
+            "t", "q", "v", "tau", "com", "base", "fc", "fp", "fn", "other", "cop", "corners",
+            "safe", "susp", "time")}
+        self.errors: dict[str, list[float]] = {}
+        self.residuals: dict[str, list[float]] = {}
+        self.status: dict[str, list[str]] = {}
+
+    def __call__(self, step: Step) -> None:
+        sim, cmd, reading, k = self.sim, step.command, step.reading, step.k
+        for key, value in (
+                ("t", step.t), ("q", step.state.q), ("v", step.state.v),
+                ("tau", np.array(cmd.tau)), ("com", sim.com()), ("base", sim.base_height()),
+                ("fc", reading.foot_contact), ("fp", reading.foot_position),
+                ("fn", reading.normal_force), ("other", bool(reading.other_contact)),
+                ("cop", reading.cop), ("corners", sim.sole_corners()), ("safe", cmd.safe_mode),
+                ("susp", cmd.report.strictness_suspended), ("time", step.wall_time)):
+            self.rows[key].append(value)
+        for s in cmd.report.tasks:
+            if s.name not in self.status:
+                self.status[s.name] = [""] * k
+                self.residuals[s.name] = [float("nan")] * k
+            self.status[s.name].append(s.status.value)
+            self.residuals[s.name].append(s.residual)
+        for task in self.controller.stack.tasks:
+            err = task.error()
+            if task.name not in self.errors:
+                self.errors[task.name] = [float("nan")] * k
+            self.errors[task.name].append(float(np.linalg.norm(err)) if err.size else 0.0)
+        for table, fill in ((self.status, ""), (self.residuals, float("nan")),
+                            (self.errors, float("nan"))):
+            for name in table:
+                if len(table[name]) < k + 1:
+                    table[name].append(fill)
+        if self.on_step is not None:
+            self.on_step(sim, cmd)
+
+    def log(self, robot: Robot, clipped: list[int], outcome: Outcome) -> Log:
+        rows, sim, nfeet = self.rows, self.sim, len(robot.feet)
+
+        def arr(key: str, shape: tuple[int, ...]) -> np.ndarray:
+            return np.array(rows[key]) if rows[key] else np.zeros((0, *shape))
+
+        # Support margin: CoM inside the hull of the sole corners of the feet in contact.
+        margins = np.full(len(rows["t"]), np.nan)
+        for i, (corners, touching, com) in enumerate(zip(rows["corners"], rows["fc"],
+                                                         rows["com"])):
+            if np.any(touching):
+                margins[i] = inside_polygon(com[:2], corners[touching].reshape(-1, 3)[:, :2])
+        return Log(
+            robot=robot.name, t=arr("t", ()), q=arr("q", (sim.nq,)), v=arr("v", (sim.nv,)),
+            tau=arr("tau", (sim.na,)), com=arr("com", (3,)), base_height=arr("base", ()),
+            foot_contact=arr("fc", (nfeet,)).astype(bool), foot_position=arr("fp", (nfeet, 3)),
+            normal_force=arr("fn", (nfeet,)), other_contact=arr("other", ()).astype(bool),
+            cop=arr("cop", (2,)), support_margin=margins,
+            task_errors={k: np.array(v) for k, v in self.errors.items()},
+            residuals={k: np.array(v) for k, v in self.residuals.items()},
+            status=self.status, safe_mode=arr("safe", ()).astype(bool),
+            strictness_suspended=arr("susp", ()).astype(bool),
+            clipped=np.array(clipped, dtype=int), step_time=arr("time", ()),
+            events=outcome.events, standing_height=robot.standing_height,
+            fell_at=outcome.fell_at,
+        )
 
 
 def simulate(
@@ -228,7 +236,7 @@ def simulate(
     progress: Callable[[float], None] | None = None,
     on_step: Callable[[Simulator, Any], None] | None = None,
 ) -> Log:
-    """Run a controller in closed loop on a robot in MuJoCo.
+    """Run a controller in closed loop on a robot in MuJoCo and log it (:func:`closed_loop`).
 
     One control step per simulation step (both at ``sim.dt``, 1 ms by default). The controller
     sees the state after optional Gaussian noise and a delay of ``delay_steps`` steps (the
@@ -265,124 +273,10 @@ def simulate(
         sim.reset(q0, v0)
     elif q0 is not None or v0 is not None:
         sim.reset(q0, v0)
-    steps = int(round(duration / sim.dt))
-    rng = np.random.default_rng(noise.seed if noise is not None else 0)
-    nq_base = 7
-    timed = sorted([e for e in events if isinstance(e, Event)], key=lambda e: e.t)
-    pushes = [e for e in events if isinstance(e, Push)]
-    for p in pushes:
-        check_array(p.force, (3,), "simulate: push force")
-    nfeet = len(robot.feet)
-    buf: collections.deque[RobotState] = collections.deque(maxlen=delay_steps + 1)
-
-    rows: dict[str, list] = {k: [] for k in (
-        "t", "q", "v", "tau", "com", "base", "fc", "fp", "fn", "other", "cop", "corners",
-        "safe", "susp", "clip", "time")}
-    errors: dict[str, list[float]] = {}
-    residuals: dict[str, list[float]] = {}
-    status: dict[str, list[str]] = {}
-    applied: list[tuple[float, str]] = []
-    fell_at = None
-    next_event = 0
-    for k in range(steps):
-        t = sim.time
-        while next_event < len(timed) and timed[next_event].t <= t + 1e-12:
-            ev = timed[next_event]
-            ev.action(sim, controller, t)
-            applied.append((t, ev.name or f"event {next_event}"))
-            next_event += 1
-        reading = sim.contacts()
-        true_state = sim.state(reading)
-        measured = true_state if noise is None else _noisy(true_state, noise, rng, nq_base)
-        buf.append(measured)
-        seen = buf[0]
-        seen = RobotState(q=seen.q, v=seen.v, t=t, contacts=seen.contacts, wrenches=seen.wrenches)
-        w0 = time.perf_counter()
-        cmd = controller.step(seen, t)
-        w1 = time.perf_counter()
-        force = np.zeros(3)
-        for p in pushes:
-            if p.t <= t < p.t + p.duration:
-                force += np.asarray(p.force, dtype=float)
-        corners = sim.sole_corners()
-        com = sim.com()
-        rows["t"].append(t)
-        rows["q"].append(true_state.q)
-        rows["v"].append(true_state.v)
-        rows["tau"].append(np.array(cmd.tau))
-        rows["com"].append(com)
-        rows["base"].append(sim.base_height())
-        rows["fc"].append(reading.foot_contact)
-        rows["fp"].append(reading.foot_position)
-        rows["fn"].append(reading.normal_force)
-        rows["other"].append(bool(reading.other_contact))
-        rows["cop"].append(reading.cop)
-        rows["corners"].append(corners)
-        rows["safe"].append(cmd.safe_mode)
-        rows["susp"].append(cmd.report.strictness_suspended)
-        rows["time"].append(w1 - w0)
-        for s in cmd.report.tasks:
-            if s.name not in status:
-                status[s.name] = [""] * k
-                residuals[s.name] = [float("nan")] * k
-            status[s.name].append(s.status.value)
-            residuals[s.name].append(s.residual)
-        for task in controller.stack.tasks:
-            err = task.error()
-            if task.name not in errors:
-                errors[task.name] = [float("nan")] * k
-            errors[task.name].append(float(np.linalg.norm(err)) if err.size else 0.0)
-        for table, fill in ((status, ""), (residuals, float("nan")), (errors, float("nan"))):
-            for name in table:
-                if len(table[name]) < k + 1:
-                    table[name].append(fill)
-        if on_step is not None:
-            on_step(sim, cmd)
-        sim.step(cmd.tau, force if np.any(force) else None)
-        rows["clip"].append(sim.last_clipped)
-        if fell_at is None and (
-            sim.base_height() < FALL_HEIGHT_RATIO * robot.standing_height
-            or reading.other_contact
-        ):
-            fell_at = t
-            logger.info("t=%.3f: fell (base %.3f m, other contacts %s)", t, sim.base_height(),
-                        reading.other_contact)
-            if stop_on_fall:
-                break
-        if progress is not None and k % 100 == 0:
-            progress(t)
-
-    def arr(key: str, shape: tuple[int, ...]) -> np.ndarray:
-        return np.array(rows[key]) if rows[key] else np.zeros((0, *shape))
-
-    # Support margin: CoM inside the hull of the sole corners of the feet in contact.
-    margins = np.full(len(rows["t"]), np.nan)
-    for i, (corners, touching, com) in enumerate(zip(rows["corners"], rows["fc"], rows["com"])):
-        if np.any(touching):
-            margins[i] = inside_polygon(com[:2], corners[touching].reshape(-1, 3)[:, :2])
-
-    return Log(
-        robot=robot.name,
-        t=arr("t", ()),
-        q=arr("q", (sim.nq,)),
-        v=arr("v", (sim.nv,)),
-        tau=arr("tau", (sim.na,)),
-        com=arr("com", (3,)),
-        base_height=arr("base", ()),
-        foot_contact=arr("fc", (nfeet,)).astype(bool),
-        foot_position=arr("fp", (nfeet, 3)),
-        normal_force=arr("fn", (nfeet,)),
-        other_contact=arr("other", ()).astype(bool),
-        cop=arr("cop", (2,)),
-        support_margin=margins,
-        task_errors={k: np.array(v) for k, v in errors.items()},
-        residuals={k: np.array(v) for k, v in residuals.items()},
-        status=status,
-        safe_mode=arr("safe", ()).astype(bool),
-        strictness_suspended=arr("susp", ()).astype(bool),
-        clipped=arr("clip", ()).astype(int),
-        step_time=arr("time", ()),
-        events=applied,
-        standing_height=robot.standing_height,
-        fell_at=fell_at,
-    )
+    recorder = _Recorder(sim, controller, on_step)
+    clipped: list[int] = []
+    outcome = closed_loop(
+        sim, controller, duration, events, noise=noise, delay_steps=delay_steps,
+        before_step=recorder, after_step=lambda step, reading: clipped.append(sim.last_clipped),
+        stop_on_fall=stop_on_fall, progress=progress)
+    return recorder.log(robot, clipped, outcome)

@@ -282,10 +282,27 @@ class Simulator:
         """Height of the floating base [m]."""
         return float(self.mj_data.xpos[self._push_body, 2])
 
-    def fallen(self) -> bool:
-        """Whether the robot fell: pelvis below 0.6 x standing height, or a non-foot contact."""
-        return (self.base_height() < FALL_HEIGHT_RATIO * self.robot.standing_height
-                or bool(self.contacts().other_contact))
+    def fall_reason(self, reading: ContactReading | None = None) -> str | None:
+        """Why the robot has fallen (``None``: it has not).
+
+        Fallen: anything but a foot touches the floor, or the pelvis is below
+        :data:`FALL_HEIGHT_RATIO` x the standing height.
+
+        Args:
+            reading: The contact reading of the current instant, if already read.
+
+        """
+        others = (reading if reading is not None else self.contacts()).other_contact
+        if others:
+            return f"{', '.join(others)} touches the floor"
+        pelvis = self.base_height()
+        if pelvis < FALL_HEIGHT_RATIO * self.robot.standing_height:
+            return f"pelvis at {pelvis:.3f} m below {FALL_HEIGHT_RATIO} x standing"
+        return None
+
+    def fallen(self, reading: ContactReading | None = None) -> bool:
+        """Whether the robot fell (:meth:`fall_reason`)."""
+        return self.fall_reason(reading) is not None
 
 
 def _hull(points: np.ndarray) -> np.ndarray:
