@@ -240,7 +240,7 @@ def test_phase_sets_the_blend_time_and_the_joint_limit_braking(tmp_path: Path) -
 
 
 def test_behavior_file_sets_the_joint_acceleration_clip() -> None:
-    from hqp.behaviors.runner import build_controller
+    from hqp.behaviors.setup import build_controller
     from hqp.tasks.joint_limits import JointLimits
 
     robot = robots.load("paper-humanoid")
@@ -255,7 +255,7 @@ def test_behavior_controllers_hold_only_the_constraint_levels() -> None:
     # The standing stack's own tasks (CoM, trunk, posture and the angular-momentum damping of
     # its balance level) are removed: left in, the damping sat strictly above the walk's
     # swing-foot tasks and cut its steps short (6 of 8 in tests/test_walk.py).
-    from hqp.behaviors.runner import build_controller
+    from hqp.behaviors.setup import build_controller
     from hqp.robots import load
 
     ctrl = build_controller(load("paper-humanoid"), "hqp")

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from hqp.behaviors.runner import run_behavior
+from hqp.app.run import run_behavior
 
 pytestmark = pytest.mark.slow
 

@@ -222,9 +222,9 @@ def test_collision_errors(robot: RobotModel) -> None:
 
 
 def test_capsule_records_are_accepted() -> None:
-    from hqp.robots.robot import Capsule as RobotCapsule
+    from hqp.robots.robot import BodyCapsule
 
-    record = RobotCapsule("shin", "rleg_elbow_body", (0.0, 0.0, 0.0), (0.0, 0.0, -0.3), 0.05)
+    record = BodyCapsule("shin", "rleg_elbow_body", (0.0, 0.0, 0.0), (0.0, 0.0, -0.3), 0.05)
     proxy = CapsuleProxy.of(record)
     assert proxy.frame == "rleg_elbow_body" and proxy.radius == 0.05
     np.testing.assert_array_equal(proxy.point_b, [0.0, 0.0, -0.3])

@@ -1,7 +1,7 @@
 """The ``walk`` behavior: PlaCo's plan, the swing trajectories, and the closed-loop walk.
 
 The closed-loop test (slow) runs ``walk`` on paper-humanoid under the HQP controller in
-MuJoCo and counts footsteps as the runner defines them (:mod:`hqp.behaviors.runner`): a
+MuJoCo and counts footsteps as the runner defines them (:mod:`hqp.app.run`): a
 swing foot out of contact for at least 0.1 s that lands at least 0.10 m ahead of where
 it lifted. ``hqp run walk --json`` prints the same figures.
 """
@@ -106,7 +106,7 @@ def test_behavior_backend_key_is_checked() -> None:
 
 @pytest.mark.slow
 def test_walk_makes_eight_footsteps_forward() -> None:
-    from hqp.behaviors.runner import run_behavior
+    from hqp.app.run import run_behavior
 
     result = run_behavior("walk", duration=WALK_DURATION)
     out = result.as_json()

@@ -8,7 +8,12 @@
 * Behavior description files (TOML, :func:`load_behavior`), and the bundled library
   (:func:`library_names`): ``stand``, ``reach``, ``mimic``, ``screwgun``, ``squat-jump``,
   ``walk``.
-* :func:`run_behavior`: a behavior in closed loop with MuJoCo (``hqp run``).
+* :func:`~hqp.behaviors.setup.prepare`: a behavior loaded for a robot, on a controller of
+  its own, ready to be driven like a controller (:meth:`Behavior.step`).
+
+This layer imports neither the simulator nor the command line: ``hqp run``
+(:func:`hqp.app.run.run_behavior`) drives a behavior in MuJoCo through
+:func:`hqp.sim.closed_loop`.
 """
 
 from hqp.behaviors.behavior import Behavior, FeasibilityEvent

@@ -38,7 +38,7 @@ from hqp.controller import Feasibility
 from hqp.errors import BehaviorFileError
 
 if TYPE_CHECKING:
-    from hqp.controller import Controller, FeasibilityReport
+    from hqp.controller import Command, Controller, FeasibilityReport
     from hqp.model import RobotState
 
 logger = logging.getLogger(__name__)
@@ -222,6 +222,15 @@ class Behavior:
         if target is not None:
             self._enter(target, state, t)
         self._set_goals(state, t)
+
+    def step(self, state: RobotState, t: float) -> Command:
+        """One control step: the controller's command at ``state``, then :meth:`update`.
+
+        A behavior is driven like a controller (e.g. by :func:`hqp.sim.closed_loop`).
+        """
+        command = self.controller.step(state, t)
+        self.update(state, t, command.report)
+        return command
 
     # -- internals --------------------------------------------------------------------------
 

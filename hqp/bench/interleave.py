@@ -24,7 +24,7 @@ import numpy as np
 
 
 @dataclass(frozen=True)
-class Timing:
+class Samples:
     """Timed samples of one configuration.
 
     Attributes:
@@ -63,7 +63,7 @@ def interleaved(
     rtol: float = 0.02,
     max_seconds: float = 30.0,
     progress: Callable[[str], None] | None = None,
-) -> dict[str, Timing]:
+) -> dict[str, Samples]:
     """Time configurations in interleaved rounds until their medians settle.
 
     Args:
@@ -116,5 +116,5 @@ def interleaved(
             progress(f"round {r}: {sum(settled.values())}/{len(names)} settled")
         if all(settled.values()) or clock() - start > max_seconds:
             break
-    return {name: Timing(np.asarray(samples[name]), settled[name], np.asarray(cpu[name]))
+    return {name: Samples(np.asarray(samples[name]), settled[name], np.asarray(cpu[name]))
             for name in names}

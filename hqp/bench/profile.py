@@ -31,6 +31,12 @@ from typing import Any
 
 import numpy as np
 
+from hqp.bench.suite_controller import T0, states
+from hqp.controller import standing_controller
+from hqp.model import RobotState
+from hqp.robots import load
+from hqp.threads import single_blas_thread
+
 
 @contextlib.contextmanager
 def cpu_clock(enabled: bool = True) -> Iterator[None]:
@@ -52,9 +58,6 @@ def cpu_clock(enabled: bool = True) -> Iterator[None]:
 
 
 def _controller(robot_name: str, backend: str, algorithm: str, diagnostics: str) -> Any:
-    from hqp.controller import standing_controller
-    from hqp.robots import load
-
     return standing_controller(load(robot_name), backend=backend, algorithm=algorithm,
                                diagnostics=diagnostics)
 
@@ -68,9 +71,6 @@ def phase_table(robot_name: str, steps: int = 200, backend: str = "proxsuite",
     with ``clock="cpu"`` (:func:`cpu_clock`), wall-clock time with ``clock="wall"``; the
     medians over ``steps`` steps are robust to the occasional preemption.
     """
-    from hqp.bench.suite_controller import T0, states
-    from hqp.model import RobotState
-
     ctrl = _controller(robot_name, backend, algorithm, diagnostics)
     sts = states(robot_name)
     phases: list[dict[str, float]] = []
@@ -111,9 +111,6 @@ def task_table(robot_name: str, steps: int = 200, backend: str = "proxsuite",
     the median of the whole phase, both in CPU time (:func:`cpu_clock`). The timers add a few
     microseconds per task to the phase.
     """
-    from hqp.bench.suite_controller import T0, states
-    from hqp.model import RobotState
-
     ctrl = _controller(robot_name, backend, algorithm, diagnostics)
     sts = states(robot_name)
     spent: dict[str, float] = {}
@@ -168,9 +165,6 @@ def profile(robot_name: str, steps: int = 200, backend: str = "proxsuite",
         step under the profiler, the CPU breakdown of :func:`cpu_breakdown`)``.
 
     """
-    from hqp.bench.suite_controller import T0, states
-    from hqp.model import RobotState
-
     ctrl = _controller(robot_name, backend, algorithm, diagnostics)
     sts = states(robot_name)
     for i in range(20):
@@ -234,8 +228,6 @@ def main(argv: list[str] | None = None) -> int:
                         help="clock of the phase table (default: CPU time of the process)")
     parser.add_argument("--no-cprofile", action="store_true", help="skip the cProfile pass")
     args = parser.parse_args(argv)
-    from comparisons.threads import single_blas_thread
-
     single_blas_thread()
     table = phase_table(args.robot, args.steps, args.backend, args.algorithm, args.diagnostics,
                         args.clock)

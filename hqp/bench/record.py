@@ -1,4 +1,4 @@
-"""Record the level matrices of real control steps (``python -m hqp.bench.record``).
+"""Record the level matrices of real control steps (``python -m hqp.app.record``).
 
 Each *source* runs one closed loop in MuJoCo with the HQP controller
 (:class:`~hqp.controller.WholeBodyController`, basis algorithm on :data:`BACKEND`) and
@@ -18,10 +18,7 @@ one per source and robot, a few hundred kB each.
 
 from __future__ import annotations
 
-import argparse
 import logging
-import sys
-import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -29,7 +26,11 @@ from typing import Any
 
 import numpy as np
 
-from hqp.bench.recorded import DATA_DIR, RecordedStep, capture, save
+from hqp.behaviors.setup import prepare
+from hqp.bench.recorded import RecordedStep, capture, save
+from hqp.sim.loop import Push, closed_loop
+from hqp.sim.simulator import Simulator
+from hqp.solver import HierarchicalSolver
 
 logger = logging.getLogger(__name__)
 
@@ -48,7 +49,8 @@ class Source:
         duration: Simulated duration [s].
         captures: Times of the captured steps [s].
         pushes: ``(t [s], force (3,) [N], duration [s])`` on the pelvis.
-        kind: ``"scenario"`` (:mod:`comparisons`) or ``"behavior"`` (:mod:`hqp.behaviors`).
+        kind: ``"scenario"`` (:mod:`comparisons`, run by :mod:`hqp.app.record`) or
+            ``"behavior"`` (:mod:`hqp.behaviors`).
 
     """
 
@@ -76,65 +78,41 @@ SOURCES: tuple[Source, ...] = (
 """The recorded sources (the steps are replayed by ``hqp bench --suite recorded``)."""
 
 
-def _push_force(source: Source, t: float, mass: float) -> np.ndarray | None:
-    f = np.zeros(3)
-    for t0, force, d in source.pushes:
-        if t0 <= t < t0 + d:
-            f += np.asarray(force, dtype=float) * mass / 70.0  # scaled to the robot's mass
-    return f if np.any(f) else None
+Runner = Callable[[Source, str, Callable[[Any, float], None]], str]
+"""Runs one source on one robot, calling ``on_step(controller, t)`` after each control step;
+returns a note ("" or why the run ended early)."""
 
 
-def _run_behavior(source: Source, robot: str, on_step: Callable[[Any, float], None]) -> str:
-    from hqp.behaviors.runner import prepare
-    from hqp.sim.simulator import FALL_HEIGHT_RATIO, Simulator
-    from hqp.solver import HierarchicalSolver
+def _pushes(source: Source, mass: float) -> list[Push]:
+    """Return the source's pushes, scaled to the robot's mass (the forces are for 70 kg)."""
+    return [Push(t0, tuple(np.asarray(force, dtype=float) * mass / 70.0), d)  # type: ignore[arg-type]
+            for t0, force, d in source.pushes]
 
+
+def run_behavior_source(source: Source, robot: str,
+                        on_step: Callable[[Any, float], None]) -> str:
+    """Run a behavior source (:data:`Runner`) in :func:`hqp.sim.closed_loop`."""
     behavior, ctrl, rob = prepare(source.name, robot=robot, controller="hqp")
     ctrl.solver = HierarchicalSolver(BACKEND, "basis")
     sim = Simulator(rob)
     ctrl.dt = sim.dt
     mass = float(sum(i.mass for i in ctrl.model.model.inertias))
-    state = sim.state()
-    behavior.start(state, 0.0)
-    n = int(round(source.duration / sim.dt))
-    for k in range(n):
-        t = k * sim.dt
-        cmd = ctrl.step(state, t)
-        behavior.update(state, t, cmd.report)
-        on_step(ctrl, t)
-        sim.step(cmd.tau, _push_force(source, t, mass))
-        state = sim.state()
-        if sim.base_height() < FALL_HEIGHT_RATIO * rob.standing_height:
-            return f"fell at t = {t:.3f} s"
-    return ""
+    behavior.start(sim.state(), 0.0)
+    outcome = closed_loop(sim, behavior, source.duration, _pushes(source, mass),
+                          before_step=lambda step: on_step(ctrl, step.t), clock="steps")
+    return "" if outcome.fell_at is None else f"fell at t = {outcome.fell_at:.3f} s"
 
 
-def _run_scenario(source: Source, robot: str, on_step: Callable[[Any, float], None]) -> str:
-    import importlib
-
-    from comparisons.base import RunSpec
-    from comparisons.common import make_controller
-    from hqp.sim.run import Push, simulate
-
-    # the scenario's own module (the registry imports every scenario)
-    module = importlib.import_module("comparisons." + source.name.replace("-", "_"))
-    cls = next(c for c in vars(module).values()
-               if isinstance(c, type) and getattr(c, "name", None) == source.name)
-    scenario = cls()
-    spec = RunSpec(controller="hqp", hierarchy="cog-first")
-    rob, model, hierarchy, _ = scenario.build(robot, spec)
-    ctrl = make_controller("hqp", rob, model, hierarchy)
-    from hqp.solver import HierarchicalSolver
-
-    ctrl.solver = HierarchicalSolver(BACKEND, "basis")
-    pushes = [Push(t0, f, d) for t0, f, d in source.pushes]
-    log = simulate(rob, ctrl, source.duration, pushes,
-                   on_step=lambda sim, cmd: on_step(ctrl, cmd.t))
-    return "" if log.fell_at is None else f"fell at t = {log.fell_at:.3f} s"
-
-
-def record_source(source: Source, robot: str, out: Path) -> tuple[Path | None, str]:
+def record_source(source: Source, robot: str, out: Path,
+                  runners: dict[str, Runner] | None = None) -> tuple[Path | None, str]:
     """Run one source on one robot and write its captured steps.
+
+    Args:
+        source: The source.
+        robot: The robot.
+        out: Output directory.
+        runners: Runner by source kind (default: behaviors only; the scenario runner lives
+            in :mod:`hqp.app.record`, the layer that may import :mod:`comparisons`).
 
     Returns:
         ``(path or None, note)``; no file when nothing was captured.
@@ -148,7 +126,9 @@ def record_source(source: Source, robot: str, out: Path) -> tuple[Path | None, s
             pending.pop(0)
             steps.append(capture(ctrl, source.name, robot, t))
 
-    run = _run_scenario if source.kind == "scenario" else _run_behavior
+    run = (runners or {"behavior": run_behavior_source}).get(source.kind)
+    if run is None:
+        return None, f"no runner for a {source.kind} source"
     try:
         note = run(source, robot, on_step)
     except Exception as exc:  # noqa: BLE001 - a source that cannot run is reported, not fatal
@@ -160,31 +140,3 @@ def record_source(source: Source, robot: str, out: Path) -> tuple[Path | None, s
                 pushes=[list(map(float, (p[0], *p[1], p[2]))) for p in source.pushes],
                 note=note)
     return path, note
-
-
-def main(argv: list[str] | None = None) -> int:
-    """Record every source (or those named) on every robot (or those named)."""
-    parser = argparse.ArgumentParser(prog="python -m hqp.bench.record", description=__doc__,
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--source", action="append", choices=[s.name for s in SOURCES],
-                        help="record this source only (repeatable)")
-    parser.add_argument("--robot", action="append", help="this robot only (repeatable)")
-    parser.add_argument("--out", type=Path, default=DATA_DIR, help="output directory")
-    args = parser.parse_args(argv)
-    logging.basicConfig(level=logging.WARNING)
-    for source in SOURCES:
-        if args.source and source.name not in args.source:
-            continue
-        for robot in source.robots:
-            if args.robot and robot not in args.robot:
-                continue
-            t0 = time.perf_counter()
-            path, note = record_source(source, robot, args.out)
-            size = f"{path.stat().st_size / 1024:.0f} kB" if path else "-"
-            print(f"{source.name:>10} {robot:>15}: {path.name if path else 'skipped':<28} "
-                  f"{size:>7} {time.perf_counter() - t0:6.1f} s {note}", file=sys.stderr)
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

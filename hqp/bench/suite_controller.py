@@ -31,7 +31,7 @@ from typing import Any
 import numpy as np
 
 from hqp.bench.accuracy import ExcessTracker, level_costs
-from hqp.bench.interleave import Timing, interleaved
+from hqp.bench.interleave import Samples, interleaved
 from hqp.solver import ALGORITHMS, available_backends, supports
 
 ROBOTS = ("paper-humanoid", "g1", "talos")
@@ -169,7 +169,7 @@ def run_robot(robot_name: str, names: Sequence[str], *, quick: bool = False,
         except Exception as exc:  # noqa: BLE001 - an unavailable configuration is reported
             failed[name] = f"{type(exc).__name__}: {exc}"
     # probe: one pass over the states (also the warm-up of persistent QPs)
-    probe: dict[str, Timing] = {}
+    probe: dict[str, Samples] = {}
     for name, st in list(steppers.items()):
         d = []
         c = []
@@ -184,7 +184,7 @@ def run_robot(robot_name: str, names: Sequence[str], *, quick: bool = False,
             failed[name] = f"{type(exc).__name__}: {exc}"
             del steppers[name]
             continue
-        probe[name] = Timing(np.asarray(d), False, np.asarray(c))
+        probe[name] = Samples(np.asarray(d), False, np.asarray(c))
     slow = {n for n in steppers if np.median(probe[n].cpu) > SLOW_SECONDS}
     for st in steppers.values():
         st.record = True

@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 
 from hqp.bench.accuracy import ExcessTracker, level_costs
-from hqp.bench.interleave import Timing, interleaved
+from hqp.bench.interleave import Samples, interleaved
 from hqp.bench.peers import DaqpHierarchy, law_to_x, nullspace_law_solve
 from hqp.bench.recorded import RecordedStep, available, load
 from hqp.solver import ALGORITHMS, HierarchicalSolver, available_backends, supports
@@ -86,8 +86,9 @@ SLOW_SECONDS = 0.25
 not timed again: its row reports the accuracy pass's times (``"probe_only": true``)."""
 
 
-def accuracy(steps: Sequence[RecordedStep], names: Sequence[str]
-             ) -> tuple[dict[str, np.ndarray], dict[str, float], dict[str, str], dict[str, Timing]]:
+def accuracy(
+    steps: Sequence[RecordedStep], names: Sequence[str]
+) -> tuple[dict[str, np.ndarray], dict[str, float], dict[str, str], dict[str, Samples]]:
     """Excesses (largest over the steps) of each configuration, and failures.
 
     Returns:
@@ -132,7 +133,7 @@ def accuracy(steps: Sequence[RecordedStep], names: Sequence[str]
     worst = {k: tracker.level.get(k, np.full(L, -np.inf)) for k in fns if k not in failed}
     rel = {k: tracker.contract.get(k, -np.inf) for k in worst}
     return (worst, rel, failed,
-            {k: Timing(np.asarray(v), False, np.asarray(probe_cpu[k])) for k, v in probe.items()})
+            {k: Samples(np.asarray(v), False, np.asarray(probe_cpu[k])) for k, v in probe.items()})
 
 
 def run_source(steps: Sequence[RecordedStep], names: Sequence[str], *, quick: bool = False,

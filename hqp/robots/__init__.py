@@ -12,7 +12,7 @@ from __future__ import annotations
 import functools
 
 from hqp.errors import UnknownName
-from hqp.robots.robot import Capsule, ContactSurface, Robot
+from hqp.robots.robot import BodyCapsule, ContactSurface, Robot
 
 NAMES = ("paper-humanoid", "g1", "talos")
 """Names accepted by :func:`load`."""
@@ -40,4 +40,4 @@ def load(name: str) -> Robot:
     raise UnknownName("robot", name, NAMES)
 
 
-__all__ = ["NAMES", "Capsule", "ContactSurface", "Robot", "load"]
+__all__ = ["NAMES", "BodyCapsule", "ContactSurface", "Robot", "load"]

@@ -154,7 +154,7 @@ class Body:
 
 
 @dataclass
-class Contact:
+class ContactParameters:
     """MuJoCo contact parameters of the soles and the floor.
 
     Attributes:
@@ -188,7 +188,7 @@ class Description:
     bodies: list[Body]
     root_height: float = 1.0
     sim_range_margin: float = 0.2
-    contact: Contact = field(default_factory=Contact)
+    contact: ContactParameters = field(default_factory=ContactParameters)
     keyframes: dict[str, np.ndarray] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
@@ -472,7 +472,7 @@ def from_pinocchio(
     geoms: dict[str, list[Geom]] | None = None,
     body_names: dict[int, str] | None = None,
     root_height: float = 1.0,
-    contact: Contact | None = None,
+    contact: ContactParameters | None = None,
 ) -> Description:
     """Describe a pinocchio model with a free-flyer root and 1-DoF revolute joints.
 
@@ -549,5 +549,5 @@ def from_pinocchio(
             )
         )
     return Description(
-        name=name, bodies=bodies, root_height=root_height, contact=contact or Contact()
+        name=name, bodies=bodies, root_height=root_height, contact=contact or ContactParameters()
     )

@@ -50,7 +50,7 @@ from hqp.errors import HQPError, UnknownName
 from hqp.layout import ContactType
 from hqp.robots import description as desc_mod
 from hqp.robots.description import (
-    Contact,
+    ContactParameters,
     Geom,
     Site,
     from_pinocchio,
@@ -59,7 +59,7 @@ from hqp.robots.description import (
     write_if_changed,
 )
 from hqp.robots.robot import (
-    Capsule,
+    BodyCapsule,
     ContactSurface,
     Robot,
     build_pinocchio_model,
@@ -70,7 +70,8 @@ SOLE_THICKNESS = 0.01
 """Thickness of the MuJoCo sole boxes [m] (bottom face = sole surface)."""
 FRICTION = 1.0
 """Sole/floor friction coefficient."""
-CONTACT = Contact(solref=(0.01, 1.0), solimp=(0.99, 0.999, 0.001, 0.5, 2.0), friction=FRICTION)
+CONTACT = ContactParameters(solref=(0.01, 1.0), solimp=(0.99, 0.999, 0.001, 0.5, 2.0),
+                            friction=FRICTION)
 """Sole/floor contact parameters (same as the paper humanoid's)."""
 
 
@@ -266,7 +267,7 @@ def generate(spec: _Spec, model: pin.Model, q_standing: np.ndarray) -> tuple[str
     return to_urdf(description), to_mjcf(description)
 
 
-def capsules(spec: _Spec, model: pin.Model) -> tuple[Capsule, ...]:
+def capsules(spec: _Spec, model: pin.Model) -> tuple[BodyCapsule, ...]:
     """Capsule proxies of the limbs: one per link between consecutive joints, plus hands and feet.
 
     Each leg and arm link gets a capsule from its joint to its child joint (links of zero
@@ -283,7 +284,7 @@ def capsules(spec: _Spec, model: pin.Model) -> tuple[Capsule, ...]:
         while joint > 1:
             chains.add(joint)
             joint = model.parents[joint]
-    out: list[Capsule] = []
+    out: list[BodyCapsule] = []
     for j in sorted(chains):
         children = [c for c in range(j + 1, model.njoints) if model.parents[c] == j and c in chains]
         targets = [model.jointPlacements[c].translation for c in children]
@@ -294,17 +295,17 @@ def capsules(spec: _Spec, model: pin.Model) -> tuple[Capsule, ...]:
         for k, (b, radius) in enumerate(zip(targets, radii)):
             if np.linalg.norm(b) < 0.03:
                 continue
-            out.append(Capsule(f"{body_names[j]}_{k}", body_names[j], (0.0, 0.0, 0.0),
-                               (float(b[0]), float(b[1]), float(b[2])), radius))
+            out.append(BodyCapsule(f"{body_names[j]}_{k}", body_names[j], (0.0, 0.0, 0.0),
+                                   (float(b[0]), float(b[1]), float(b[2])), radius))
     half_x, half_y = spec.sole_half
     radius = half_y / 1.5
     for side in ("left", "right"):
         frame = model.frames[model.getFrameId(f"{side}_foot")]
         a = frame.placement.act(np.array([-half_x + radius, 0.0, radius]))
         b = frame.placement.act(np.array([half_x - radius, 0.0, radius]))
-        out.append(Capsule(f"{side}_foot", body_names[frame.parentJoint],
-                           (float(a[0]), float(a[1]), float(a[2])),
-                           (float(b[0]), float(b[1]), float(b[2])), radius))
+        out.append(BodyCapsule(f"{side}_foot", body_names[frame.parentJoint],
+                               (float(a[0]), float(a[1]), float(a[2])),
+                               (float(b[0]), float(b[1]), float(b[2])), radius))
     return tuple(out)
 
 

@@ -70,7 +70,7 @@ import pinocchio as pin
 
 from hqp.robots.description import (
     Body,
-    Contact,
+    ContactParameters,
     Description,
     Geom,
     Inertial,
@@ -80,7 +80,7 @@ from hqp.robots.description import (
     to_urdf,
     write_if_changed,
 )
-from hqp.robots.robot import ROOT_JOINT, Capsule, solve_standing
+from hqp.robots.robot import ROOT_JOINT, BodyCapsule, solve_standing
 
 NAME = "paper-humanoid"
 DATA_DIR = Path(__file__).parent / "data"
@@ -167,7 +167,8 @@ SOLE_THICKNESS = 0.01
 """Thickness of the MuJoCo sole box [m] (its bottom face is the sole surface)."""
 FRICTION = 1.0
 """Sole/floor friction coefficient (MuJoCo's default sliding friction)."""
-CONTACT = Contact(solref=(0.01, 1.0), solimp=(0.99, 0.999, 0.001, 0.5, 2.0), friction=FRICTION)
+CONTACT = ContactParameters(solref=(0.01, 1.0), solimp=(0.99, 0.999, 0.001, 0.5, 2.0),
+                            friction=FRICTION)
 """Sole/floor contact parameters (tuned so a standing robot sinks < 1 mm, see tests)."""
 
 
@@ -373,7 +374,7 @@ def standing_configuration(model: pin.Model) -> np.ndarray:
                           active=lambda i: i < 3 or i in leg_dofs)
 
 
-def capsules() -> tuple[Capsule, ...]:
+def capsules() -> tuple[BodyCapsule, ...]:
     """Capsule proxies for distance primitives, attached to body frames.
 
     The limbs' capsules are the MJCF's capsule geoms (thighs, shanks, upper arms,
@@ -388,7 +389,7 @@ def capsules() -> tuple[Capsule, ...]:
                 continue
             a = (float(geom.fromto[0]), float(geom.fromto[1]), float(geom.fromto[2]))
             b = (float(geom.fromto[3]), float(geom.fromto[4]), float(geom.fromto[5]))
-            out.append(Capsule(f"{body.name}_{k}", body.name, a, b, float(geom.size[0])))
+            out.append(BodyCapsule(f"{body.name}_{k}", body.name, a, b, float(geom.size[0])))
     l_trunk = (SHOULDER_H - HIP_H) * H
     l_lower = TRUNK_RATIOS[0] / sum(TRUNK_RATIOS) * l_trunk
     z_shoulder = l_trunk - l_lower
@@ -398,15 +399,17 @@ def capsules() -> tuple[Capsule, ...]:
     head_com = l_head * (1.0 - DE_LEVA["head"][1])
     l_forearm, l_hand = FOREARM_L * H, HAND_L * H
     l_foot, h_ankle = FOOT_L * H, ANKLE_H * H
-    out.append(Capsule("pelvis", "pelvis", (0.0, -hip_y, 0.06), (0.0, hip_y, 0.06), 0.11))
-    out.append(Capsule("trunk", "trunk", (0.0, 0.0, 0.1), (0.0, 0.0, z_shoulder - 0.1), 0.15))
-    out.append(Capsule("head", "head_link", (0.0, 0.0, head_com), (0.0, 0.0, head_com), 0.1))
+    out.append(BodyCapsule("pelvis", "pelvis", (0.0, -hip_y, 0.06), (0.0, hip_y, 0.06), 0.11))
+    out.append(BodyCapsule("trunk", "trunk", (0.0, 0.0, 0.1), (0.0, 0.0, z_shoulder - 0.1), 0.15))
+    out.append(BodyCapsule("head", "head_link", (0.0, 0.0, head_com), (0.0, 0.0, head_com), 0.1))
     for side in ("left", "right"):
-        out.append(Capsule(f"{side}_hand", f"{side}_forearm", (0.0, 0.0, -l_forearm - 0.02),
-                           (0.0, 0.0, -l_forearm - l_hand + 0.04), 0.045))
+        out.append(BodyCapsule(f"{side}_hand", f"{side}_forearm",
+                               (0.0, 0.0, -l_forearm - 0.02),
+                               (0.0, 0.0, -l_forearm - l_hand + 0.04), 0.045))
         z = -h_ankle + 0.035
-        out.append(Capsule(f"{side}_foot", f"{side}_foot_link", (-0.25 * l_foot + 0.035, 0.0, z),
-                           (0.75 * l_foot - 0.035, 0.0, z), 0.035))
+        out.append(BodyCapsule(f"{side}_foot", f"{side}_foot_link",
+                               (-0.25 * l_foot + 0.035, 0.0, z),
+                               (0.75 * l_foot - 0.035, 0.0, z), 0.035))
     return tuple(out)
 
 

@@ -59,7 +59,7 @@ class ContactSurface:
 
 
 @dataclass(frozen=True)
-class Capsule:
+class BodyCapsule:
     """A capsule proxy of a body part for distance primitives.
 
     Attributes:
@@ -123,7 +123,7 @@ class Robot:
     position_limits: tuple[np.ndarray, np.ndarray] | None = None
     velocity_limits: np.ndarray | None = None
     torque_limits: np.ndarray | None = None
-    capsules: tuple[Capsule, ...] = ()
+    capsules: tuple[BodyCapsule, ...] = ()
     package_dirs: tuple[str, ...] = ()
     source_urdf_path: Path | None = None
 

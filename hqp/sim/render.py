@@ -20,12 +20,12 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from hqp.errors import HQPError
+from hqp.sim.run import Log, simulate
+from hqp.sim.simulator import Simulator
 
 if TYPE_CHECKING:
     from hqp.robots import Robot
     from hqp.sim.loop import Event, Push
-    from hqp.sim.run import Log
-    from hqp.sim.simulator import Simulator
 
 logger = logging.getLogger(__name__)
 
@@ -108,6 +108,59 @@ def render_png(sim: Simulator, path: str | Path, *, width: int = 640, height: in
     return path
 
 
+class Video:
+    """Offscreen frames at ``fps`` of simulated time, written as an MP4 or PNG frames.
+
+    ``path`` ending in ``.mp4`` asks for a video (needs imageio with its ffmpeg plugin; a
+    warning says when PNG frames are written instead); otherwise ``path`` is a directory of
+    PNG frames.
+
+    Raises:
+        RenderUnavailable: No offscreen OpenGL context.
+
+    """
+
+    def __init__(self, sim: Simulator, path: str | Path, *, fps: int = 30, width: int = 640,
+                 height: int = 480, distance: float = 3.0, azimuth: float = 135.0,
+                 elevation: float = -15.0) -> None:
+        self.camera = _Camera(sim, width, height, distance, azimuth, elevation)
+        self.path = Path(path)
+        self.fps = fps
+        self.next_t = 0.0
+        self.frames: list[np.ndarray] = []
+
+    def capture(self, t: float) -> None:
+        """Grab a frame when one is due at simulated time ``t`` [s]."""
+        if t + 1e-9 < self.next_t:
+            return
+        self.next_t += 1.0 / self.fps
+        self.frames.append(self.camera.frame())
+
+    def close(self) -> Path:
+        """Write the frames; return the path written (the MP4, or the folder of PNGs)."""
+        import matplotlib.pyplot as plt
+
+        self.camera.close()
+        path = self.path
+        if path.suffix == ".mp4":
+            try:
+                import imageio.v2 as imageio
+
+                path.parent.mkdir(parents=True, exist_ok=True)
+                imageio.mimwrite(path, self.frames, fps=self.fps)
+                return path
+            except ImportError:
+                logger.warning("imageio (with imageio-ffmpeg) is not installed: writing PNG "
+                               "frames instead of %s", path)
+            except Exception as exc:  # noqa: BLE001 - a missing ffmpeg plugin
+                logger.warning("MP4 writing failed (%s): writing PNG frames instead", exc)
+            path = path.with_suffix("")
+        path.mkdir(parents=True, exist_ok=True)
+        for i, image in enumerate(self.frames):
+            plt.imsave(path / f"frame_{i:05d}.png", image)
+        return path
+
+
 def record(
     robot: Robot,
     controller: Any,
@@ -120,56 +173,21 @@ def record(
     height: int = 480,
     **kwargs: Any,
 ) -> tuple[Log, Path]:
-    """Run :func:`~hqp.sim.simulate` and record it to an MP4 or to PNG frames.
-
-    ``path`` ending in ``.mp4`` asks for a video (needs imageio); otherwise ``path`` is a
-    directory of PNG frames.
+    """Run :func:`~hqp.sim.simulate` and record it (:class:`Video`).
 
     Returns:
-        The log and the path written (the MP4 file, or the directory of PNG frames when
-        imageio is missing; a warning says so).
+        The log and the path written (the MP4 file, or the directory of PNG frames).
 
     Raises:
         RenderUnavailable: No offscreen OpenGL context.
 
     """
-    import matplotlib.pyplot as plt
-
-    from hqp.sim.run import simulate
-    from hqp.sim.simulator import Simulator
-
     _require()
     sim = kwargs.pop("sim", None) or Simulator(robot, dt=getattr(controller, "dt", 0.001))
-    cam = _Camera(sim, width, height, 3.0, 135.0, -15.0)
-    frames: list[np.ndarray] = []
-    every = max(1, int(round(1.0 / (fps * sim.dt))))
-    counter = {"k": 0}
-
-    def grab(s: Simulator, cmd: Any) -> None:
-        if counter["k"] % every == 0:
-            frames.append(cam.frame())
-        counter["k"] += 1
-
+    video = Video(sim, path, fps=fps, width=width, height=height)
     try:
-        log = simulate(robot, controller, duration, events, sim=sim, on_step=grab, **kwargs)
+        log = simulate(robot, controller, duration, events, sim=sim,
+                       on_step=lambda s, cmd: video.capture(s.time), **kwargs)
     finally:
-        cam.close()
-    path = Path(path)
-    if path.suffix == ".mp4":
-        try:
-            import imageio.v2 as imageio
-
-            path.parent.mkdir(parents=True, exist_ok=True)
-            imageio.mimwrite(path, frames, fps=fps)
-            return log, path
-        except ImportError:
-            logger.warning("imageio (with imageio-ffmpeg) is not installed: writing PNG frames "
-                           "instead of %s", path)
-            path = path.with_suffix("")
-        except Exception as exc:  # noqa: BLE001 - a missing ffmpeg plugin
-            logger.warning("MP4 writing failed (%s): writing PNG frames instead", exc)
-            path = path.with_suffix("")
-    path.mkdir(parents=True, exist_ok=True)
-    for i, image in enumerate(frames):
-        plt.imsave(path / f"frame_{i:05d}.png", image)
-    return log, path
+        written = video.close()
+    return log, written

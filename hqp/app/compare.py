@@ -13,13 +13,22 @@ import argparse
 import json
 import sys
 from collections.abc import Sequence
-from typing import TextIO
+from typing import Any, TextIO
 
 from comparisons import CONTROLLERS, SCENARIOS, get_scenario
 from comparisons.report import format_table, write_plots
-from comparisons.threads import single_blas_thread
-from hqp.console import stdout_to_stderr
+from hqp.app.console import stdout_to_stderr
 from hqp.errors import InvalidInput
+from hqp.threads import single_blas_thread
+
+
+def add_parser(subparsers: Any) -> argparse.ArgumentParser:
+    """Add ``hqp compare``."""
+    p = subparsers.add_parser("compare", help="run the papers' scenarios",
+                              description=__doc__)
+    add_arguments(p)
+    p.set_defaults(func=command)
+    return p
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -41,7 +50,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def run(args: argparse.Namespace, out: TextIO | None = None, err: TextIO | None = None) -> int:
+def command(args: argparse.Namespace, out: TextIO | None = None,
+            err: TextIO | None = None) -> int:
     """Execute ``hqp compare`` with parsed arguments.
 
     With ``--json``, everything written to stdout during the runs (by Python
@@ -72,7 +82,7 @@ def run(args: argparse.Namespace, out: TextIO | None = None, err: TextIO | None 
 
 
 def _run(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
-    """Run the scenarios and print (see :func:`run`)."""
+    """Run the scenarios and print (see :func:`command`)."""
     single_blas_thread()
     names: Sequence[str] = SCENARIOS if args.all else [args.name]
     scenarios = [get_scenario(n) for n in names]  # unknown names fail before any run

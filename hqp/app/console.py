@@ -1,7 +1,6 @@
 """Console streams of the command line: keep stdout for the one JSON object.
 
-This module imports nothing of the project, so that every command module (``hqp.cli``,
-``hqp.behaviors.command``, ``comparisons.command``) can import it at module level.
+It imports nothing of the project: every command module of :mod:`hqp.app` can import it.
 """
 
 from __future__ import annotations

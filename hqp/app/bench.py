@@ -1,0 +1,55 @@
+"""``hqp bench --suite SUITE [--json] [--plot DIR] [--quick]``: run a benchmark suite.
+
+The suites are those of :mod:`hqp.bench`; with ``--json`` stdout holds the contract's object
+``{"suite": ..., "rows": [...]}`` alone, otherwise a readable table.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+from typing import Any
+
+from hqp.app.console import stdout_to_stderr
+from hqp.bench import get_suite, run_suite, suite_names
+from hqp.bench.report import format_table, write_plots
+
+logger = logging.getLogger(__name__)
+
+
+def add_parser(subparsers: Any) -> argparse.ArgumentParser:
+    """Add ``hqp bench``."""
+    p = subparsers.add_parser(
+        "bench", help="run a benchmark suite",
+        description="Time solvers or whole control steps (warm-up, repetitions until the "
+                    "median settles, median and p95 from one process).")
+    p.add_argument("--suite", required=True, help=f"suite: {', '.join(suite_names())}")
+    p.add_argument("--json", action="store_true", help="print the JSON object alone on stdout")
+    p.add_argument("--plot", metavar="DIR", help="write PNG figures into DIR")
+    p.add_argument("--quick", action="store_true",
+                   help="a small, short subset (CI smoke test; times are not meaningful)")
+    p.set_defaults(func=command)
+    return p
+
+
+def command(args: argparse.Namespace) -> int:
+    """Run ``hqp bench``."""
+    get_suite(args.suite)  # unknown suites fail before any work
+
+    def progress(message: str) -> None:
+        logger.info(message)
+
+    if args.json:
+        with stdout_to_stderr() as out:
+            result = run_suite(args.suite, quick=args.quick, progress=progress)
+            if args.plot:
+                write_plots(result, args.plot)
+            out.write(json.dumps(result) + "\n")
+        return 0
+    result = run_suite(args.suite, quick=args.quick, progress=progress)
+    if args.plot:
+        for path in write_plots(result, args.plot):
+            logger.info("wrote %s", path)
+    print(format_table(result))
+    return 0

@@ -1,0 +1,377 @@
+"""``hqp run``: a behavior in closed loop with MuJoCo, measured.
+
+:func:`run_behavior` prepares a behavior (:func:`hqp.behaviors.setup.prepare`) and drives it
+through :func:`hqp.sim.closed_loop` (clock ``k dt``). Measured and reported (the JSON of
+``hqp run --json``, :meth:`BehaviorRun.as_json`): whether the robot fell
+(:meth:`hqp.sim.Simulator.fall_reason`), the phases visited, the footsteps completed (a swing
+foot out of contact for at least 0.1 s that lands at least 0.10 m ahead of where it lifted),
+the feasibility events, the longest flight (no foot in contact) and the highest the lower foot
+site rose during flights (``flight_clearance_m``), the largest ratio of a commanded torque to
+its limit, and for planned behaviors the mean forward speed and the largest horizontal
+centre-of-mass tracking error.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from hqp.app.console import stdout_to_stderr
+from hqp.behaviors.behavior import Behavior
+from hqp.behaviors.setup import prepare
+from hqp.behaviors.spec import BehaviorSpec
+from hqp.nullspace import CONTROLLER_NAMES
+from hqp.plots import Line, Panel, plot_panels
+from hqp.sim.loop import Step, closed_loop
+from hqp.sim.render import Video
+from hqp.sim.simulator import ContactReading, Simulator
+
+STEP_MIN_AIR_TIME = 0.1
+"""A footstep: the swing foot is out of contact at least this long [s] ..."""
+STEP_MIN_ADVANCE = 0.10
+"""... and lands at least this far ahead (world x) of where it lifted [m]."""
+
+
+@dataclass
+class FootTracker:
+    """Counts footsteps of one foot from its sensed contact and position."""
+
+    name: str
+    in_contact: bool = True
+    lift_t: float = 0.0
+    lift_x: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    steps: list[dict[str, float]] = field(default_factory=list)
+
+    def update(self, contact: bool, position: np.ndarray, t: float) -> None:
+        """Record a lift-off or a landing."""
+        if self.in_contact and not contact:
+            self.lift_t, self.lift_x = t, position.copy()
+        elif not self.in_contact and contact:
+            air = t - self.lift_t
+            advance = float(position[0] - self.lift_x[0])
+            if air >= STEP_MIN_AIR_TIME and advance >= STEP_MIN_ADVANCE:
+                self.steps.append({"foot": self.name, "t_lift": round(self.lift_t, 4),
+                                   "t_land": round(t, 4), "air_time_s": round(air, 4),
+                                   "advance_m": round(advance, 4)})
+        self.in_contact = contact
+
+
+@dataclass
+class BehaviorRun:
+    """Outcome of :func:`run_behavior` (see :meth:`as_json`)."""
+
+    behavior: str
+    robot: str
+    controller: str
+    duration_s: float
+    fell: bool
+    fall_reason: str | None
+    phases: list[str]
+    steps: list[dict[str, float]]
+    feasibility_events: list[dict[str, Any]]
+    metrics: dict[str, Any]
+
+    def as_json(self) -> dict[str, Any]:
+        """Return the JSON object of ``hqp run --json``."""
+        return {
+            "behavior": self.behavior, "robot": self.robot, "controller": self.controller,
+            "duration_s": round(self.duration_s, 6), "fell": self.fell,
+            "fall_reason": self.fall_reason, "phases": self.phases, "steps": len(self.steps),
+            "footsteps": self.steps, "feasibility_events": self.feasibility_events,
+            **self.metrics,
+        }
+
+
+class _Meter:
+    """The hooks of a behavior run: what :class:`BehaviorRun` reports, step by step."""
+
+    def __init__(self, behavior: Behavior, sim: Simulator, feet: list[str], trace: bool,
+                 video: Video | None) -> None:
+        self.behavior, self.sim, self.video = behavior, sim, video
+        self.model = behavior.controller.model
+        self.trackers = {c: FootTracker(c) for c in feet}
+        self.torque_ratio = 0.0
+        self.clipped = 0
+        self.safe_steps = 0
+        self.flight, self.flight_start, self.max_flight = False, 0.0, 0.0
+        self.clearance = 0.0  # highest height of the lower foot while no foot touches [m]
+        self.com_err_max, self.com_err_t = 0.0, None
+        self.pelvis_min = np.inf
+        self.x_start = self.model.com[0]
+        self.tau_prev: np.ndarray | None = None
+        self.tau_jump, self.tau_jump_t = 0.0, None
+        self.step_times: list[float] = []
+        self.ratio = 0.0
+        self.trace: dict[str, list[Any]] | None = (
+            {"t": [], "com": [], "vz": [], "feet": [], "fn": [], "tau": []} if trace else None)
+
+    def before_step(self, step: Step) -> None:
+        """Figures of the command (before MuJoCo's step)."""
+        cmd, t = step.command, step.t
+        self.step_times.append(step.wall_time)
+        if cmd.safe_mode:
+            self.safe_steps += 1
+        self.ratio = float(np.max(np.abs(cmd.tau) / np.maximum(self.model.tau_max, 1e-9)))
+        self.torque_ratio = max(self.torque_ratio, self.ratio)
+        if self.tau_prev is not None:
+            jump = float(np.max(np.abs(cmd.tau - self.tau_prev)))
+            if jump > self.tau_jump:
+                self.tau_jump, self.tau_jump_t = jump, t
+        self.tau_prev = cmd.tau
+        if any("clipped" in note for note in cmd.report.notes):
+            self.clipped += 1
+
+    def after_step(self, step: Step, reading: ContactReading) -> None:
+        """Figures of the new state (MuJoCo's contacts: for logs and tests only)."""
+        t_new = (step.k + 1) * self.sim.dt
+        for i, tr in enumerate(self.trackers.values()):
+            tr.update(bool(reading.foot_contact[i]), reading.foot_position[i], t_new)
+        airborne = not any(bool(c) for c in reading.foot_contact[:len(self.trackers)])
+        if airborne and not self.flight:
+            self.flight, self.flight_start = True, t_new
+        elif not airborne and self.flight:
+            self.flight = False
+            self.max_flight = max(self.max_flight, t_new - self.flight_start)
+        if airborne:
+            self.clearance = max(self.clearance, float(np.min(reading.foot_position[:, 2])))
+        if self.trace is not None:
+            for key, value in (("t", t_new), ("com", self.model.com[2]),
+                               ("vz", self.model.com_velocity[2]),
+                               ("feet", reading.foot_position[:, 2].copy()),
+                               ("fn", reading.normal_force.copy()), ("tau", self.ratio)):
+                self.trace[key].append(value)
+        planner = self.behavior.planner
+        if planner is not None and planner.trajectory is not None:
+            plan = planner.outputs(step.t)
+            if plan["started"] and not plan["done"]:
+                err = float(np.linalg.norm(self.model.com[:2] - plan["com"][:2]))
+                if err > self.com_err_max:
+                    self.com_err_max, self.com_err_t = err, step.t
+        self.pelvis_min = min(self.pelvis_min, self.sim.base_height())
+        if self.video is not None:
+            self.video.capture(t_new)
+
+    def steps(self) -> list[dict[str, float]]:
+        """Footsteps of both feet, by landing time."""
+        return sorted((s for tr in self.trackers.values() for s in tr.steps),
+                      key=lambda s: s["t_land"])
+
+    def metrics(self, t_end: float, backend: str | None) -> dict[str, Any]:
+        """Return the figures of the run, rounded for its JSON."""
+        if self.flight:
+            self.max_flight = max(self.max_flight, t_end - self.flight_start)
+        metrics: dict[str, Any] = {
+            "max_torque_ratio": round(self.torque_ratio, 4),
+            "max_torque_jump_nm": round(self.tau_jump, 3),
+            "max_torque_jump_t": None if self.tau_jump_t is None else round(self.tau_jump_t, 3),
+            "controller_clipped_steps": self.clipped,
+            "sim_clipped_torques": int(self.sim.clip_count),
+            "safe_mode_steps": self.safe_steps,
+            "flight_time_s": round(self.max_flight, 4),
+            "flight_clearance_m": round(self.clearance, 4),
+            "pelvis_min_m": round(float(self.pelvis_min), 4),
+            "step_time_median_ms": (round(1e3 * float(np.median(self.step_times)), 3)
+                                    if self.step_times else 0),
+            "backend": backend,
+            "video": None,
+        }
+        if self.behavior.planner is not None:
+            metrics.update(self._walk_metrics(t_end))
+        return metrics
+
+    def _walk_metrics(self, t_end: float) -> dict[str, Any]:
+        x_end = self.model.com[0]
+        out: dict[str, Any] = {
+            "distance_m": round(float(x_end - self.x_start), 4),
+            "mean_speed_m_s": round(float(x_end - self.x_start) / t_end, 4),
+        }
+        steps = self.steps()
+        if steps:
+            walk_time = steps[-1]["t_land"] - steps[0]["t_lift"]
+            x_steps = sum(s["advance_m"] for s in steps) / 2
+            out["walking_time_s"] = round(walk_time, 4)
+            out["step_speed_m_s"] = round(x_steps / walk_time, 4) if walk_time > 0 else 0.0
+        out["com_tracking_error_max_m"] = round(self.com_err_max, 4)
+        out["com_tracking_error_max_t"] = (None if self.com_err_t is None
+                                           else round(self.com_err_t, 3))
+        return out
+
+
+def run_behavior(
+    source: str | Path | BehaviorSpec,
+    *,
+    robot: str | None = None,
+    controller: str = "hqp",
+    duration: float | None = None,
+    inputs: str | Path | None = None,
+    overrides: dict[str, Any] | None = None,
+    video: str | Path | None = None,
+    stop_on_fall: bool = True,
+    progress: Callable[[float, float], None] | None = None,
+    backend: str | None = None,
+    plot: str | Path | None = None,
+) -> BehaviorRun:
+    """Run a behavior in MuJoCo and measure it (see the module docstring).
+
+    Args:
+        source: Library name, file path or spec.
+        robot: Robot name (default: the behavior's).
+        controller: ``"hqp"`` or ``"nullspace"``.
+        duration: Simulated duration [s] (default: the behavior's).
+        inputs: Inputs file (JSON Lines).
+        overrides: Input defaults to replace.
+        video: Write an MP4 (or PNG frames) here, if rendering is available.
+        stop_on_fall: End the run when the robot falls.
+        progress: Called as ``progress(t, duration)`` every 0.1 s of simulated time.
+        backend: QP backend of the HQP controller (default: the behavior's, see
+            :func:`~hqp.behaviors.setup.prepare`).
+        plot: Write a PNG of the run here (centre-of-gravity height and vertical velocity,
+            feet heights, normal forces, largest torque ratio; phase changes as vertical
+            lines); its path is reported as ``plot`` in the metrics.
+
+    """
+    behavior, ctrl, robot_obj = prepare(source, robot=robot, controller=controller,
+                                        inputs=inputs, overrides=overrides, backend=backend)
+    spec = behavior.spec
+    total = float(duration if duration is not None else spec.duration)
+    sim = Simulator(robot_obj)
+    ctrl.dt = sim.dt
+    behavior.start(sim.state(), 0.0)
+    recorder = (None if video is None
+                else Video(sim, video, distance=3.5, azimuth=120.0, elevation=-15.0))
+    meter = _Meter(behavior, sim, list(robot_obj.feet), plot is not None, recorder)
+    outcome = closed_loop(sim, behavior, total, before_step=meter.before_step,
+                          after_step=meter.after_step, clock="steps", stop_on_fall=stop_on_fall,
+                          progress=None if progress is None else lambda t: progress(t, total))
+    metrics = meter.metrics(outcome.t_end, getattr(ctrl, "backend", None))
+    if recorder is not None:
+        metrics["video"] = str(recorder.close())
+    metrics.update(behavior.metrics())
+    if meter.trace is not None and plot is not None:
+        metrics["plot"] = str(_plot_run(meter.trace, metrics["phase_times"],
+                                        list(meter.trackers), plot,
+                                        f"{spec.name} on {robot_obj.name} ({controller})"))
+    return BehaviorRun(
+        behavior=spec.name, robot=robot_obj.name, controller=controller,
+        duration_s=outcome.t_end, fell=outcome.fell, fall_reason=outcome.fall_reason,
+        phases=list(behavior.visited), steps=meter.steps(),
+        feasibility_events=[e.as_dict() for e in behavior.events], metrics=metrics,
+    )
+
+
+def _plot_run(trace: dict[str, list[Any]], phases: list[dict[str, Any]], feet: list[str],
+              path: str | Path, title: str) -> Path:
+    """Draw the run's trace (see :func:`run_behavior`'s ``plot``)."""
+    t = np.asarray(trace["t"])
+    events = tuple(float(p["t"]) for p in phases[1:])
+    feet_z = np.asarray(trace["feet"]).reshape(len(t), -1)
+    normal = np.asarray(trace["fn"]).reshape(len(t), -1)
+    panels = [
+        Panel("Centre of gravity height", "z [m]", t, (Line("CoG", np.asarray(trace["com"])),),
+              events),
+        Panel("Centre of gravity vertical velocity", "vz [m/s]", t,
+              (Line("CoG", np.asarray(trace["vz"])),), events),
+        Panel("Feet heights (MuJoCo sites)", "z [mm]", t,
+              tuple(Line(f, 1e3 * feet_z[:, i]) for i, f in enumerate(feet)), events),
+        Panel("Normal forces (MuJoCo)", "force [N]", t,
+              tuple(Line(f, normal[:, i]) for i, f in enumerate(feet)), events),
+        Panel("Largest torque / limit", "ratio", t,
+              (Line("max |tau| / tau_max", np.asarray(trace["tau"])),
+               Line("limit", np.ones_like(t), "dashed")), events),
+    ]
+    names = ", ".join(f"{p['phase']} {p['t']:g} s" for p in phases)
+    return plot_panels(panels, path, title=f"{title}\nphases: {names}")
+
+
+# ------------------------------------------------------------------ the command
+def add_parser(subparsers: Any) -> argparse.ArgumentParser:
+    """Add ``hqp run BEHAVIOR [--robot] [--controller] [--duration] [--json] ...``."""
+    p = subparsers.add_parser(
+        "run", help="run a behavior (library name or .toml file) in MuJoCo",
+        description="Run a behavior in closed loop with MuJoCo and report what happened: "
+                    "phases visited, fall, footsteps, feasibility events.")
+    p.add_argument("behavior", help="library name (see `hqp behaviors`) or a .toml file")
+    p.add_argument("--robot", default=None, help="robot (default: the behavior's)")
+    p.add_argument("--controller", default="hqp", choices=CONTROLLER_NAMES)
+    p.add_argument("--backend", default=None,
+                   help="QP backend of the HQP controller: proxsuite, daqp, quadprog, osqp "
+                        "(default: the behavior's, else proxsuite)")
+    p.add_argument("--duration", type=float, default=None,
+                   help="simulated time [s] (default: the behavior's)")
+    p.add_argument("--inputs", default=None,
+                   help="runtime inputs, JSON Lines of {\"t\": ..., \"<input>\": ...}")
+    p.add_argument("--set", action="append", default=[], metavar="INPUT=JSON",
+                   help="replace an input's default, e.g. --set takeoff_height=1.2")
+    p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    p.add_argument("--video", default=None, help="write an MP4 of the run")
+    p.add_argument("--plot", default=None,
+                   help="write a PNG of the run (CoG height and velocity, feet heights, "
+                        "normal forces, torque ratio; phase changes as vertical lines)")
+    p.set_defaults(func=command)
+    return p
+
+
+def _overrides(items: list[str]) -> dict[str, Any] | str:
+    """Parse ``--set INPUT=JSON`` items; return the overrides, or the error message."""
+    overrides: dict[str, Any] = {}
+    for item in items:
+        key, sep, value = item.partition("=")
+        if not sep:
+            return f"hqp run: --set expects INPUT=JSON, got {item!r}"
+        try:
+            overrides[key] = json.loads(value)
+        except json.JSONDecodeError as exc:
+            return f"hqp run: --set {key}: not JSON ({exc})"
+    return overrides
+
+
+def _summary(data: dict[str, Any]) -> str:
+    """Return the readable summary of ``hqp run`` (without ``--json``)."""
+    outcome = f"FELL ({data['fall_reason']})" if data["fell"] else "did not fall"
+    lines = [
+        f"behavior {data['behavior']} on {data['robot']} ({data['controller']}), "
+        f"{data['duration_s']:.2f} s: {outcome}",
+        f"  phases: {' -> '.join(data['phases'])}",
+        f"  footsteps: {data['steps']}, longest flight: {data['flight_time_s']:.3f} s, "
+        f"max |tau|/tau_max: {data['max_torque_ratio']:.2f}, largest torque change in "
+        f"one step: {data['max_torque_jump_nm']:.1f} N m",
+    ]
+    if "mean_speed_m_s" in data:
+        lines.append(f"  mean speed {data['mean_speed_m_s']:.3f} m/s, CoM tracking error max "
+                     f"{1e3 * data['com_tracking_error_max_m']:.1f} mm")
+    lines.append(f"  feasibility events: {len(data['feasibility_events'])}")
+    return "\n".join(lines)
+
+
+def command(args: argparse.Namespace) -> int:
+    """Run ``hqp run``; print JSON (``--json``) or a short summary. Returns 0, or 1 on a fall."""
+    overrides = _overrides(args.set)
+    if isinstance(overrides, str):
+        print(overrides, file=sys.stderr)
+        return 2
+
+    def progress(t: float, total: float) -> None:
+        if int(round(t * 10)) % 10 == 0:
+            print(f"\r{args.behavior}: t = {t:5.1f} / {total:.1f} s", end="", file=sys.stderr,
+                  flush=True)
+
+    # C libraries (PlaCo) print to stdout: keep stdout for the one JSON object
+    with stdout_to_stderr() as out:
+        result = run_behavior(args.behavior, robot=args.robot, controller=args.controller,
+                              duration=args.duration, inputs=args.inputs, overrides=overrides,
+                              video=args.video, progress=progress, backend=args.backend,
+                              plot=args.plot)
+        print(file=sys.stderr)
+        data = result.as_json()
+        if args.json:
+            out.write(json.dumps(data) + "\n")
+    if not args.json:
+        print(_summary(data))
+    return 1 if data["fell"] else 0

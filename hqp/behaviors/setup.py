@@ -1,0 +1,148 @@
+"""A behavior ready to run: loaded for a robot, on a controller of its own (no simulator).
+
+:func:`prepare` loads a behavior (library name, file or spec), checks its frames, joints and
+contacts against the robot, and builds its controller (:func:`build_controller`), task
+factory, runtime inputs and planner. Running it is the caller's part (``hqp run``:
+:func:`hqp.app.run.run_behavior`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from hqp import robots
+from hqp.behaviors.behavior import Behavior
+from hqp.behaviors.factory import TaskFactory
+from hqp.behaviors.inputs import InputStream
+from hqp.behaviors.loader import load_behavior
+from hqp.behaviors.planners import PlacoWalkPlanner
+from hqp.behaviors.spec import BehaviorSpec, InputSpec
+from hqp.errors import BehaviorFileError, UnknownName
+from hqp.nullspace import CONTROLLER_NAMES, make_standing_controller
+from hqp.tasks.centroidal import CentroidalMomentumTask
+from hqp.tasks.com import CoMTask
+from hqp.tasks.orientation import OrientationTask
+from hqp.tasks.posture import PostureTask
+
+
+def build_controller(
+    robot: Any,
+    controller: str,
+    *,
+    diagnostics: str = "residuals",
+    backend: str | None = None,
+    max_joint_acceleration: float | None = None,
+) -> Any:
+    """Build a whole-body controller holding only the constraint levels of docs/architecture.md.
+
+    The standing controllers (:func:`hqp.controller.standing_controller`,
+    :func:`hqp.nullspace.standing_nullspace_controller`: physics
+    with both soles as contacts, friction / centre-of-pressure / torque limits, viable joint
+    limits for HQP or the papers' activation zones for the null-space law), without their
+    standing tasks: the behavior writes its own task sets.
+
+    Args:
+        robot: The bundled robot.
+        controller: ``"hqp"`` or ``"nullspace"``.
+        diagnostics: ``"residuals"`` (per-task residuals, cheap) or ``"full"``.
+        backend: QP backend of the HQP controller (``None``: its default).
+        max_joint_acceleration: Clip of the HQP controller's joint-acceleration bounds
+            [rad/s^2] (``None``: its default; the null-space law has activation zones instead).
+
+    Raises:
+        UnknownName: Unknown controller.
+
+    """
+    if controller not in CONTROLLER_NAMES:
+        raise UnknownName("controller", controller, CONTROLLER_NAMES)
+    kwargs: dict[str, Any] = {}
+    if controller == "hqp" and backend is not None:
+        kwargs["backend"] = backend
+    if controller == "hqp" and max_joint_acceleration is not None:
+        kwargs["max_joint_acceleration"] = max_joint_acceleration
+    ctrl = make_standing_controller(controller, robot, diagnostics=diagnostics, **kwargs)
+    for task in list(ctrl.stack.tasks):
+        # the standing tasks (the angular-momentum damping of the standing balance level
+        # included: left in, it sat strictly above every task of a behavior's lower levels)
+        if isinstance(task, (CoMTask, OrientationTask, PostureTask, CentroidalMomentumTask)):
+            ctrl.stack.remove(task.name)
+    ctrl.stack.pop_events()
+    return ctrl
+
+
+def _contacts_of(spec: BehaviorSpec, robot: Any) -> dict[str, str]:
+    if spec.contact_frames:
+        return dict(spec.contact_frames)
+    return {c.name: c.frame for c in robot.contacts}
+
+
+def _with_overrides(spec: BehaviorSpec, overrides: dict[str, Any]) -> BehaviorSpec:
+    """Return the spec with some input defaults replaced (by input name)."""
+    new_inputs = dict(spec.inputs)
+    for k, v in overrides.items():
+        if k not in new_inputs:
+            raise UnknownName("input", k, new_inputs)
+        old = new_inputs[k]
+        new_inputs[k] = InputSpec(k, old.shape, np.asarray(v, dtype=float).reshape(old.shape),
+                                  old.interpolate, old.description)
+    return replace(spec, inputs=new_inputs)
+
+
+def prepare(
+    source: str | Path | BehaviorSpec,
+    *,
+    robot: str | None = None,
+    controller: str = "hqp",
+    inputs: str | Path | None = None,
+    overrides: dict[str, Any] | None = None,
+    backend: str | None = None,
+) -> tuple[Behavior, Any, Any]:
+    """Load a behavior for a robot and build its controller (no simulation).
+
+    Args:
+        source: Library name, file path, or an already parsed spec.
+        robot: Robot name (default: the behavior's).
+        controller: ``"hqp"`` or ``"nullspace"``.
+        inputs: Inputs file (default: the behavior's ``inputs_file``, else defaults).
+        overrides: Input defaults to replace, by input name (e.g. a jump target).
+        backend: QP backend of the HQP controller (default: the behavior's ``backend``,
+            else the controller's default).
+
+    Returns:
+        ``(behavior, controller, robot)``.
+
+    """
+    spec = source if isinstance(source, BehaviorSpec) else load_behavior(source)
+    robot_obj = robots.load(robot or spec.robot)
+    ctrl = build_controller(robot_obj, controller,
+                            backend=backend if backend is not None else spec.backend,
+                            max_joint_acceleration=spec.max_joint_acceleration)
+    model = ctrl.model
+    contacts = _contacts_of(spec, robot_obj)
+    declared = set(ctrl.stack.contacts)
+    if set(contacts) != declared:
+        raise BehaviorFileError(f"{spec.path}: contacts {sorted(contacts)} differ from the "
+                                f"robot's {sorted(declared)}")
+    # validate frames, joints and contacts of the file against this robot
+    path = spec.path if spec.path is not None else source
+    if spec.path is not None:
+        spec = load_behavior(spec.path, frames=model.frame_names, joints=model.joint_names,
+                             contacts=list(contacts))
+    if overrides:
+        spec = _with_overrides(spec, overrides)
+    factory = TaskFactory(model, contacts, robot_obj.q_standing, feet=robot_obj.feet)
+    inputs_path = inputs if inputs is not None else spec.inputs_file
+    stream = InputStream(spec.inputs, inputs_path)
+    planner = None
+    if spec.planner is not None:
+        surface = robot_obj.contact(robot_obj.feet[0])
+        planner = PlacoWalkPlanner(robot_obj.urdf_path, spec.planner.params,
+                                   foot_length=2 * surface.half_length,
+                                   foot_width=2 * surface.half_width, where=str(path))
+    behavior = Behavior(spec, ctrl, factory, inputs=stream, planner=planner,
+                        standing=robot_obj.q_standing)
+    return behavior, ctrl, robot_obj
