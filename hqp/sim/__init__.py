@@ -9,8 +9,8 @@
 The pinocchio/MuJoCo state conversion lives in :mod:`hqp.sim.convert` (one place).
 """
 
-from hqp.sim.render import RenderUnavailable, record, render_png, rendering_available
 from hqp.sim.loop import Event, Noise, Outcome, Push, Step, closed_loop
+from hqp.sim.render import RenderUnavailable, record, render_png, rendering_available
 from hqp.sim.run import Log, simulate
 from hqp.sim.simulator import FALL_HEIGHT_RATIO, ContactReading, Simulator, inside_polygon
 
