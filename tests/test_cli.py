@@ -1,4 +1,9 @@
-"""The ``hqp`` command line: bench subcommand, JSON on stdout alone, errors."""
+"""The ``hqp`` command line: the contracts' JSON of compare, run and bench end to end, errors.
+
+The keys checked are those of docs/architecture.md and ../shared/ARCHITECTURE.md, "Contract:
+the command line"; each command runs in its own process, as the checks outside the
+repository call it, with the shortest durations and sizes it accepts.
+"""
 
 from __future__ import annotations
 
@@ -7,6 +12,9 @@ import os
 import subprocess
 import sys
 
+import pytest
+
+import hqp.app.cli
 from hqp.cli import build_parser, main
 
 ENV = {**os.environ, "OMP_NUM_THREADS": "1"}
@@ -46,7 +54,66 @@ def test_unknown_suite_is_an_error(capsys):
 def test_subcommands_are_registered():
     parser = build_parser()
     sub = next(a for a in parser._actions if a.dest == "command")
-    assert "bench" in sub.choices
+    assert {"bench", "compare", "run", "behaviors"} <= set(sub.choices)
+
+
+def test_a_subcommand_that_fails_to_import_fails_loudly(monkeypatch):
+    def broken(subparsers):
+        raise ImportError("No module named 'missing_dependency'")
+
+    monkeypatch.setattr(hqp.app.cli, "SUBCOMMANDS", (*hqp.app.cli.SUBCOMMANDS, broken))
+    with pytest.raises(ImportError, match="missing_dependency"):
+        build_parser()
+
+
+COMPARE_RUN_KEYS = {"controller", "hierarchy", "cog_error_max_mm", "cog_error_final_mm",
+                    "hand_final_distance_cm", "joint_limit_violation_max_rad",
+                    "step_time_median_ms", "fell"}
+RUN_KEYS = {"behavior", "robot", "duration_s", "fell", "phases", "steps", "feasibility_events",
+            "max_torque_jump_nm"}
+BENCH_ROW_KEYS = {"robot", "solver", "levels", "n", "median_ms", "p95_ms"}
+
+
+def test_compare_end_to_end():
+    proc = _hqp("compare", "hand-reach", "--json", "--duration", "0.02")
+    assert proc.returncode == 0, proc.stderr
+    result = json.loads(proc.stdout)  # stdout holds the JSON object alone
+    assert result["scenario"] == "hand-reach" and result["robot"] == "paper-humanoid"
+    for run in result["runs"]:
+        assert COMPARE_RUN_KEYS <= set(run), COMPARE_RUN_KEYS - set(run)
+        assert run["fell"] is False
+    pairs = {(r["controller"], r["hierarchy"]) for r in result["runs"]}
+    assert {(c, h) for c in ("hqp", "nullspace") for h in ("shared", "cog-first")} <= pairs
+    assert _hqp("compare", "no-such-scenario", "--json").returncode == 2
+
+
+def test_run_end_to_end():
+    proc = _hqp("run", "stand", "--duration", "0.02", "--json")
+    assert proc.returncode == 0, proc.stderr
+    data = json.loads(proc.stdout)
+    assert RUN_KEYS <= set(data), RUN_KEYS - set(data)
+    assert data["behavior"] == "stand" and data["robot"] == "paper-humanoid"
+    assert data["fell"] is False and data["phases"] == ["stand"] and data["steps"] == 0
+    assert data["duration_s"] == pytest.approx(0.02)
+    assert isinstance(data["feasibility_events"], list)
+    assert _hqp("run", "no-such-behavior", "--json").returncode == 2
+
+
+def test_bench_end_to_end():
+    proc = _hqp("bench", "--suite", "controller", "--quick", "--json")
+    assert proc.returncode == 0, proc.stderr
+    result = json.loads(proc.stdout)
+    assert result["suite"] == "controller" and result["rows"]
+    for row in result["rows"]:
+        assert BENCH_ROW_KEYS <= set(row), BENCH_ROW_KEYS - set(row)
+        assert isinstance(row["robot"], str) and row["median_ms"] > 0
+    assert any(r["solver"].startswith("hqp/") for r in result["rows"])
+
+
+def test_behaviors_lists_the_library(capsys):
+    assert main(["behaviors", "--json"]) == 0
+    names = {b["name"] for b in json.loads(capsys.readouterr().out)["behaviors"]}
+    assert {"stand", "walk", "squat-jump"} <= names
 
 
 def test_run_with_a_backend_reports_it_and_the_torque_jump(capfd):
