@@ -8,7 +8,9 @@ hierarchy ignores any scaling between levels, so weights only trade tasks of the
 
 :meth:`Stack.build` turns the tasks into levels at the current state without solving them (the
 ``build_ik`` of mink), and records the row ranges of every task (:class:`TaskSpan`) so that a
-controller can attribute residuals to tasks.
+controller can attribute residuals to tasks. It changes nothing: building twice gives the same
+levels. What moves with time (ramps, contact unloading and release) is advanced by
+:meth:`Stack.advance`, which the controller calls once per step before building.
 
 Changes at runtime, without a jump in the motion:
 
@@ -35,7 +37,7 @@ Changes at runtime, without a jump in the motion:
 * **Changes that cannot be ramped** (removing a task, making a contact, releasing an unloaded
   contact) are recorded as *blend events*; the controller then interpolates its torques from the
   last command to the new hierarchy's over ``blend_time`` and reports that strictness was
-  suspended (see :class:`hqp.controller.WholeBodyController`). For a contact made, both
+  suspended (see :class:`hqp.control.servo.WholeBodyController`). For a contact made, both
   hierarchies are solved during the blend (the one without the contact inside
   :meth:`Stack.contact_released`) and their torques interpolated, so that the new contact's
   wrench is phased in and the old hierarchy's feedback stays active.
@@ -54,6 +56,7 @@ import numpy as np
 
 from hqp.errors import HQPError, InvalidInput, InvalidLevel, UnknownName
 from hqp.layout import ContactType
+from hqp.solver import Level
 from hqp.tasks.base import Category, Rows, Task
 from hqp.tasks.reference import (  # min_jerk: also importable as hqp.stack.min_jerk
     MIN_JERK_PEAK_ACCELERATION,
@@ -65,7 +68,6 @@ from hqp.tasks.tracking import TrackingTask
 if TYPE_CHECKING:
     from hqp.layout import Layout
     from hqp.model import RobotModel
-    from hqp.solver import Level
 
 DEFAULT_LEVELS: tuple[Category, ...] = tuple(Category)
 """Default levels: one per category, highest first."""
@@ -466,13 +468,16 @@ class Stack:
             return
         saved = [(e.task, e.task.__dict__.get("active"), e.task.__dict__.get("reference"))
                  for e in self._contact_tasks(name) if hasattr(e.task, "deactivate")]
+        frames = self._active_frames()
         c.mode = ContactMode.INACTIVE
         for task, _, _ in saved:
             task.deactivate()  # type: ignore[attr-defined]
+        self._set_active_frames(self._active_frames())
         try:
             yield
         finally:
             c.mode = ContactMode.ACTIVE
+            self._set_active_frames(frames)
             for task, active, reference in saved:
                 if active is not None:
                     task.active = active  # type: ignore[attr-defined]
@@ -523,7 +528,7 @@ class Stack:
         events, self._events = self._events, []
         return events
 
-    # -- build ------------------------------------------------------------------------------
+    # -- advance, then build ----------------------------------------------------------------
 
     def _update_contacts(self, t: float) -> None:
         for c in self._contacts.values():
@@ -535,22 +540,112 @@ class Stack:
                         entry.task.deactivate()
                 self._events.append(BlendEvent(t, f"contact {c.name!r} released"))
 
-    def build(
+    def _check_layout(self, layout: Layout, where: str) -> None:
+        for slot in layout.contacts:
+            if slot.name not in self._contacts:
+                raise InvalidInput(
+                    f"{where}: layout contact {slot.name!r} is not declared in the stack"
+                )
+
+    def _active_frames(self) -> tuple[str, ...]:
+        return tuple(c.frame for c in self._contacts.values()
+                     if c.mode is not ContactMode.INACTIVE)
+
+    def _set_active_frames(self, frames: tuple[str, ...]) -> None:
+        for entry in self._tasks:
+            if entry.task.contact_aware:
+                entry.task.set_active_contacts(frames)  # type: ignore[attr-defined]
+
+    def _dropped(self, entry: _TaskEntry) -> bool:
+        """Whether a task is out of the built levels (its contact released)."""
+        return entry.contact is not None and (
+            self._contacts[entry.contact].mode is ContactMode.INACTIVE
+            and not self._self_managed(entry.contact)
+        )
+
+    @staticmethod
+    def _ramping(entry: _TaskEntry, t: float) -> bool:
+        return entry.ramp_time > 0.0 and t < entry.added_at + entry.ramp_time
+
+    @staticmethod
+    def _unload_fraction(c: _ContactEntry, t: float) -> float:
+        return min_jerk((t - c.unload_start) / c.unload_time) if c.unload_time > 0 else 1.0
+
+    def advance(
         self,
         model: RobotModel,
         layout: Layout,
         dt: float,
         t: float,
         x_prev: np.ndarray | None = None,
-    ) -> BuiltStack:
-        """Build the solver levels of one control step (no solve).
+    ) -> None:
+        """Advance the stack's state to time ``t`` (call once per step, before :meth:`build`).
+
+        Contacts whose unloading is over are released (a blend event); an unloading contact
+        records its normal force at the start of unloading (from ``x_prev``) and lowers its
+        contact task's normal-force bound; contact-aware tasks learn the active contacts; a
+        task added at runtime starts its goal ramp; a task ramping in records its offsets at
+        ``x_prev`` (at its first step, or when its row count changed).
+
+        Args:
+            model: Robot model, updated at the current state.
+            layout: Decision-variable layout (its contacts must be the declared ones).
+            dt: Control period [s] (the rows of a task ramping in are evaluated).
+            t: Time [s].
+            x_prev: Previous solution ``(n,)`` (``None``: ramps start from zero).
+
+        Raises:
+            InvalidInput: A layout contact not declared in the stack, or rows of a task ramping
+                in with the wrong number of columns.
+
+        """
+        self._check_layout(layout, "Stack.advance")
+        self._update_contacts(t)
+        n = layout.n
+        for slot in layout.contacts:
+            c = self._contacts[slot.name]
+            if c.mode is not ContactMode.UNLOADING:
+                continue
+            if c.f_start is None:
+                C = np.zeros((1, n))
+                C[0, slot.start:slot.start + 3] = model.frame_placement(slot.frame).rotation[:, 2]
+                fz = float(C[0] @ x_prev) if x_prev is not None else 0.0
+                c.f_start = max(fz, 0.0)
+            owner = self._owner(c)
+            if owner is not None:
+                fmax = (1.0 - self._unload_fraction(c, t)) * c.f_start
+                if c.f_max_nominal is None:
+                    c.f_max_nominal = float(owner.max_normal_force)  # type: ignore[attr-defined]
+                f_min = float(getattr(owner, "f_min", 0.0))
+                owner.max_normal_force = max(  # type: ignore[attr-defined]
+                    min(fmax, c.f_max_nominal), f_min
+                )
+        self._set_active_frames(self._active_frames())
+        for entry in self._tasks:
+            if self._dropped(entry):
+                continue
+            if entry.goal_ramp_pending:
+                entry.goal_ramp_pending = False
+                _ramp_goal(entry.task, model, entry.ramp_time, t)
+            if not self._ramping(entry, t):
+                continue
+            rows = entry.task.rows(model, layout, dt, t)
+            _check_columns(rows, n, entry.task.where())
+            if entry.offsets is None or not _offsets_fit(entry.offsets, rows):
+                entry.offsets = _ramp_offsets(rows, x_prev)
+
+    def build(self, model: RobotModel, layout: Layout, dt: float, t: float) -> BuiltStack:
+        """Build the solver levels of one control step (no solve, no change of the stack).
+
+        Building twice gives the same levels; what changes with time (ramps, contact
+        switching) is advanced by :meth:`advance`. A task ramping in whose offsets were not
+        recorded ramps from zero (as with ``x_prev = None``).
 
         Args:
             model: Robot model, updated at the current state.
             layout: Decision-variable layout (its contacts must be the declared ones).
             dt: Control period [s].
             t: Time [s].
-            x_prev: Previous solution ``(n,)`` (for ramps; ``None``: ramps start from zero).
 
         Returns:
             The levels and the row ranges of every task.
@@ -560,40 +655,24 @@ class Stack:
                 wrong number of columns.
 
         """
-        from hqp.solver import Level
-
         n = layout.n
-        for slot in layout.contacts:
-            if slot.name not in self._contacts:
-                raise InvalidInput(
-                    f"Stack.build: layout contact {slot.name!r} is not declared in the stack"
-                )
-        self._update_contacts(t)
+        self._check_layout(layout, "Stack.build")
         per_level: list[list[tuple[str, Rows, float, float, bool]]] = [
             [] for _ in range(self.n_levels)
         ]
-        self._contact_rows(model, layout, t, x_prev, per_level)
-        active_frames = tuple(c.frame for c in self._contacts.values()
-                              if c.mode is not ContactMode.INACTIVE)
+        self._contact_rows(model, layout, t, per_level)
         for entry in self._tasks:
-            if entry.task.contact_aware:
-                entry.task.set_active_contacts(active_frames)  # type: ignore[attr-defined]
-            if entry.contact is not None and (
-                self._contacts[entry.contact].mode is ContactMode.INACTIVE
-                and not self._self_managed(entry.contact)
-            ):
+            if self._dropped(entry):
                 continue
-            if entry.goal_ramp_pending:
-                entry.goal_ramp_pending = False
-                _ramp_goal(entry.task, model, entry.ramp_time, t)
             rows = entry.task.rows(model, layout, dt, t)
             _check_columns(rows, n, entry.task.where())
             s = 1.0
-            if entry.ramp_time > 0.0 and t < entry.added_at + entry.ramp_time:
+            if self._ramping(entry, t):
                 s = min_jerk((t - entry.added_at) / entry.ramp_time)
-                if entry.offsets is None or not _offsets_fit(entry.offsets, rows):
-                    entry.offsets = _ramp_offsets(rows, x_prev)
-                rows = _ramp(rows, s, entry.offsets)
+                offsets = entry.offsets
+                if offsets is None or not _offsets_fit(offsets, rows):
+                    offsets = _ramp_offsets(rows, None)
+                rows = _ramp(rows, s, offsets)
             per_level[entry.level].append((entry.task.name, rows, entry.task.weight, s, False))
 
         levels: list[Level] = []
@@ -629,7 +708,6 @@ class Stack:
         model: RobotModel,
         layout: Layout,
         t: float,
-        x_prev: np.ndarray | None,
         per_level: list[list[tuple[str, Rows, float, float, bool]]],
     ) -> None:
         """Stack-owned rows: zero slots of released contacts, unloading bounds."""
@@ -647,23 +725,12 @@ class Stack:
                 A[:, slot.slice] = np.eye(slot.size)
                 per_level[0].append((f"{c.name}/released", Rows(A=A, b=np.zeros(slot.size)),
                                      1.0, 1.0, True))
-            elif c.mode is ContactMode.UNLOADING:
+            elif c.mode is ContactMode.UNLOADING and owner is None:
                 normal = np.array(model.frame_placement(slot.frame).rotation[:, 2])
                 C = np.zeros((1, n))
                 C[0, slot.start:slot.start + 3] = normal
-                if c.f_start is None:
-                    fz = float(C[0] @ x_prev) if x_prev is not None else 0.0
-                    c.f_start = max(fz, 0.0)
-                s = min_jerk((t - c.unload_start) / c.unload_time) if c.unload_time > 0 else 1.0
-                fmax = (1.0 - s) * c.f_start
-                if owner is not None:
-                    if c.f_max_nominal is None:
-                        c.f_max_nominal = float(owner.max_normal_force)  # type: ignore[attr-defined]
-                    f_min = float(getattr(owner, "f_min", 0.0))
-                    owner.max_normal_force = max(  # type: ignore[attr-defined]
-                        min(fmax, c.f_max_nominal), f_min
-                    )
-                    continue
+                s = self._unload_fraction(c, t)
+                fmax = (1.0 - s) * (0.0 if c.f_start is None else c.f_start)
                 per_level[limits].append(
                     (f"{c.name}/unload", Rows(C=C, lower=np.array([-np.inf]),
                                               upper=np.array([fmax])), 1.0, 1.0 - s, True)

@@ -271,7 +271,7 @@ def test_an_unchanged_goal_is_not_set_again_so_the_goal_ramp_of_a_new_task_survi
     behavior.start(state, 0.0)
     behavior.update(state, 0.5, None)  # -> reach: hand added, goal set
     hand = behavior.tasks["hand"]
-    ctrl.stack.build(ctrl.model, _layout(ctrl), 1e-3, 0.5, None)  # the stack starts the ramp
+    ctrl.stack.advance(ctrl.model, _layout(ctrl), 1e-3, 0.5, None)  # the stack starts the ramp
     ramp = hand.trajectory
     assert ramp is not None
     behavior.update(state, 0.501, None)

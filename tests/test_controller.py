@@ -136,7 +136,7 @@ def test_safe_mode_when_the_solve_fails(failure, monkeypatch):
     assert any("solved again with backend" in n for n in backup.report.notes)
     np.testing.assert_allclose(backup.tau, good.tau, atol=1e-5 * np.abs(good.tau).max())
     # With the fallback failing too, the safe command is sent.
-    monkeypatch.setattr(c._fallback(), "solve", broken)
+    monkeypatch.setattr(c.resolver.fallback(), "solve", broken)
     cmd = c.step(state, DT)
     assert cmd.safe_mode and cmd.report.safe_mode and not cmd.report.feasible
     assert np.all(np.isfinite(cmd.tau)) and np.all(np.abs(cmd.tau) <= m.tau_max)

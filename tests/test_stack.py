@@ -18,6 +18,20 @@ from hqp.tasks.contact import Contact
 from hqp.tasks.dynamics import FloatingBaseDynamics
 
 
+def advance_build(st, m, layout, t, x_prev):
+    """One control step's use of the stack: advance to ``t``, then build."""
+    st.advance(m, layout, 1e-3, t, x_prev)
+    return st.build(m, layout, 1e-3, t)
+
+
+def same_levels(a, b) -> bool:
+    fields = ("A", "b", "C", "lower", "upper")
+    return a.level_index == b.level_index and a.spans == b.spans and all(
+        (getattr(la, f) is None and getattr(lb, f) is None)
+        or np.array_equal(getattr(la, f), getattr(lb, f))
+        for la, lb in zip(a.levels, b.levels, strict=True) for f in fields)
+
+
 @pytest.fixture(scope="module")
 def humanoid():
     m, q = sample_humanoid()
@@ -108,16 +122,16 @@ def test_task_ramp_starts_at_previous_solution(humanoid):
     x_prev = rng.normal(size=layout.n)
     x_prev[9] = 0.0  # outside [2, 3]
     full = task.rows(m, layout, 1e-3, 1.0)
-    b0 = st.build(m, layout, 1e-3, 1.0, x_prev)
+    b0 = advance_build(st, m, layout, 1.0, x_prev)
     np.testing.assert_allclose(b0.rows["com"].A @ x_prev, b0.rows["com"].b, atol=1e-12)
     assert b0.span("com").ramp == 0.0
     lo, hi = b0.rows["bound"].lower[0], b0.rows["bound"].upper[0]
     assert lo <= x_prev[9] <= hi
-    mid = st.build(m, layout, 1e-3, 1.1, x_prev)
+    mid = advance_build(st, m, layout, 1.1, x_prev)
     np.testing.assert_allclose(
         mid.rows["com"].b, 0.5 * full.b + 0.5 * (full.A @ x_prev), atol=1e-12
     )
-    end = st.build(m, layout, 1e-3, 1.2, x_prev)
+    end = advance_build(st, m, layout, 1.2, x_prev)
     np.testing.assert_allclose(end.rows["com"].b, full.b, atol=1e-12)
     assert end.rows["bound"].lower[0] == 2.0 and end.span("com").ramp == 1.0
 
@@ -135,14 +149,14 @@ def test_task_ramp_offset_is_frozen_so_the_task_feedback_acts(humanoid):
     rng = np.random.default_rng(1)
     x_add = rng.normal(size=layout.n)
     full0 = task.rows(m, layout, 1e-3, 1.0)
-    st.build(m, layout, 1e-3, 1.0, x_add)
+    advance_build(st, m, layout, 1.0, x_add)
     offset = full0.A @ x_add - full0.b
     v = 0.3 * rng.normal(size=m.nv)  # the robot moved: the task's damping changes its target
     m.update(q, v)
     try:
         full = task.rows(m, layout, 1e-3, 1.1)
         assert np.linalg.norm(full.b - full0.b) > 1e-2
-        mid = st.build(m, layout, 1e-3, 1.1, rng.normal(size=layout.n))  # any x_prev
+        mid = advance_build(st, m, layout, 1.1, rng.normal(size=layout.n))  # any x_prev
         np.testing.assert_allclose(mid.rows["com"].b, full.b + 0.5 * offset, atol=1e-12)
     finally:
         m.update(q, np.zeros(m.nv))
@@ -162,12 +176,12 @@ def test_contact_unloading_then_release(humanoid):
     x[layout.contact("left").start + 2] = 300.0
     st.deactivate_contact("left", t=0.0)
     assert st.contact_mode("left") is ContactMode.UNLOADING
-    st.build(m, layout, 1e-3, 0.0, x)
+    advance_build(st, m, layout, 0.0, x)
     assert left.max_normal_force == pytest.approx(300.0)
-    st.build(m, layout, 1e-3, 0.05, x)
+    advance_build(st, m, layout, 0.05, x)
     assert left.max_normal_force == pytest.approx(150.0)
     assert st.active_contacts == ("right", "left")
-    built = st.build(m, layout, 1e-3, 0.1, x)
+    built = advance_build(st, m, layout, 0.1, x)
     assert st.contact_mode("left") is ContactMode.INACTIVE
     assert math.isinf(left.max_normal_force) and not left.active  # nominal bound restored
     rows = built.rows["left"]
@@ -180,10 +194,10 @@ def test_contact_unloading_then_release(humanoid):
     # The hierarchy before the contact was made: its slot held at zero, then restored.
     with st.contact_released("left"):
         assert not left.active and st.active_contacts == ("right",)
-        before = st.build(m, layout, 1e-3, 0.2, x)
+        before = st.build(m, layout, 1e-3, 0.2)  # pure: nothing advanced inside
     assert left.active and st.contact_mode("left") is ContactMode.ACTIVE
     np.testing.assert_allclose(before.rows["left"].A[:, layout.contact("left").slice], np.eye(6))
-    after = st.build(m, layout, 1e-3, 0.2, x)
+    after = advance_build(st, m, layout, 0.2, x)
     assert np.abs(after.rows["left"].A[:, : m.nv]).max() > 0.0  # the contact condition again
     with pytest.raises(UnknownName):
         st.deactivate_contact("hand")
@@ -219,7 +233,7 @@ def test_goal_ramp_of_an_added_task_stays_within_its_pd_law():
     st = Stack(ramp_time=0.1)
     st.add(hand, t=1.0)
     st.add(trunk, t=1.0)
-    st.build(m, layout, 1e-3, 1.0, None)
+    advance_build(st, m, layout, 1.0, None)
     ts = 1.0 + np.linspace(0.0, 2.0, 2001)
     samples = [hand.goal_at(t) for t in ts]
     np.testing.assert_allclose(samples[0].position, p0, atol=1e-12)
@@ -232,3 +246,32 @@ def test_goal_ramp_of_an_added_task_stays_within_its_pd_law():
     # unsaturated: T = max(1.875 kv / kp, sqrt(5.77 / kp)) = 0.375 s for a 90-degree turn
     w = [np.linalg.norm(trunk.goal_at(t).velocity) for t in ts]
     assert max(w) == pytest.approx(1.875 * (np.pi / 2) / 0.375, rel=1e-3)
+
+
+def test_build_is_pure_and_idempotent(humanoid):
+    # Building changes nothing: twice at the same state gives the same levels, a contact whose
+    # unloading is over is only released by advance, and a ramp's offsets are only recorded
+    # by advance (without them the task ramps from zero).
+    m, q = humanoid
+    st = Stack(unload_time=0.1, ramp_time=0.2)
+    st.add(FloatingBaseDynamics())
+    left = Contact("left", "left_sole")
+    st.add_contact(left)
+    st.add_contact(Contact("right", "right_sole"))
+    layout = Layout.build(m.nv, st.layout_contacts())
+    task = ComStandIn("com", m.com[:2] + 0.05)
+    st.add(task, t=0.0)
+    x = np.random.default_rng(2).normal(size=layout.n)
+    full = task.rows(m, layout, 1e-3, 0.1)
+    unramped = st.build(m, layout, 1e-3, 0.1)  # no advance: ramps from zero
+    np.testing.assert_allclose(unramped.rows["com"].b, 0.5 * full.b, atol=1e-12)
+    st.deactivate_contact("left", t=0.0)
+    st.advance(m, layout, 1e-3, 0.0, x)
+    first = st.build(m, layout, 1e-3, 0.2)
+    assert same_levels(first, st.build(m, layout, 1e-3, 0.2))
+    assert st.contact_mode("left") is ContactMode.UNLOADING and not st.pop_events()
+    st.advance(m, layout, 1e-3, 0.2, x)
+    assert st.contact_mode("left") is ContactMode.INACTIVE
+    assert [e.note for e in st.pop_events()] == ["contact 'left' released"]
+    built = st.build(m, layout, 1e-3, 0.2)
+    assert same_levels(built, st.build(m, layout, 1e-3, 0.2)) and not st.pop_events()

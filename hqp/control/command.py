@@ -1,0 +1,140 @@
+"""What a controller sends at one control step: the command and its feasibility report.
+
+:class:`Command` holds the torques ``tau (na,)`` [N m], the expected accelerations
+``qdd (nv,)``, the contact wrenches and a :class:`FeasibilityReport`: one
+:class:`TaskStatus` per task (satisfied, in conflict with a higher level, singular, inactive),
+the seed's feasibility flag (001, "the servo module sends a flag to the active behavior
+indicating infeasibility").
+"""
+
+from __future__ import annotations
+
+import enum
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from hqp.errors import UnknownName
+
+
+class Feasibility(enum.Enum):
+    """Feasibility status of one task at one control step."""
+
+    SATISFIED = "satisfied"
+    """The task's rows are met (residual below the controller's tolerance)."""
+    CONFLICT = "conflict"
+    """The task's rows are not met because a higher level (or a task of its own level) wins."""
+    SINGULAR = "singular"
+    """The task is met but its rows, projected on the optimal set above, are (nearly) singular."""
+    INACTIVE = "inactive"
+    """The task produced no rows at this step (e.g. a released contact, an empty task)."""
+
+
+@dataclass(frozen=True)
+class TaskStatus:
+    """Feasibility of one task at one control step.
+
+    Attributes:
+        name: Task name.
+        level: Index of the task's level (0 is the highest priority).
+        status: Satisfied, conflict, singular or inactive.
+        residual: Norm of the task's unweighted residual: equality residual ``A x - b`` and
+            inequality violations ``dist(C x, [lower, upper])`` stacked (units of the rows,
+            e.g. [m/s^2] for a position task).
+        yields_to: For a conflict, the index of the highest-priority level whose optimal set
+            makes the task unreachable (the task's own level when it is traded against a
+            task of its own level by weights); ``None`` otherwise, or when the task is
+            infeasible on its own.
+        sigma_min: Smallest singular value of the task's rows projected on the optimal set of
+            the levels above (``nan`` when not computed).
+
+    """
+
+    name: str
+    level: int
+    status: Feasibility
+    residual: float = 0.0
+    yields_to: int | None = None
+    sigma_min: float = float("nan")
+
+    @property
+    def feasible(self) -> bool:
+        """Whether the task is satisfied (or inactive)."""
+        return self.status in (Feasibility.SATISFIED, Feasibility.INACTIVE)
+
+
+@dataclass(frozen=True)
+class FeasibilityReport:
+    """Per-task feasibility of one control step (the seed's feasibility flags).
+
+    Attributes:
+        tasks: One status per task of the stack, in level order.
+        safe_mode: The safe command was sent (solve failed or non-finite result).
+        strictness_suspended: The torques sent were interpolated between two hierarchies (a
+            change that could not be ramped: contact made, task or contact removed), so for
+            this step the strict hierarchy is not exactly enforced.
+        notes: Human-readable notes (why safe mode, which change is being blended, ...).
+        level_costs: Optimal cost of each level (as reported by the solver).
+
+    """
+
+    tasks: tuple[TaskStatus, ...] = ()
+    safe_mode: bool = False
+    strictness_suspended: bool = False
+    notes: tuple[str, ...] = ()
+    level_costs: tuple[float, ...] = ()
+
+    def __getitem__(self, name: str) -> TaskStatus:
+        """Return the status of a task by name.
+
+        Raises:
+            UnknownName: No task of that name in the report.
+
+        """
+        for s in self.tasks:
+            if s.name == name:
+                return s
+        raise UnknownName("task", name, [s.name for s in self.tasks])
+
+    def __contains__(self, name: object) -> bool:
+        return any(s.name == name for s in self.tasks)
+
+    @property
+    def feasible(self) -> bool:
+        """Whether every task is satisfied or inactive and no safe mode was needed."""
+        return not self.safe_mode and all(s.feasible for s in self.tasks)
+
+    def conflicts(self) -> list[TaskStatus]:
+        """Return the tasks in conflict with a higher level or their own."""
+        return [s for s in self.tasks if s.status is Feasibility.CONFLICT]
+
+    def singular(self) -> list[TaskStatus]:
+        """Return the tasks reported singular."""
+        return [s for s in self.tasks if s.status is Feasibility.SINGULAR]
+
+
+@dataclass(frozen=True)
+class Command:
+    """What a controller sends to the robot at one control step.
+
+    Attributes:
+        tau: Joint torques ``(na,)`` [N m] over the actuated joints, in the model's order.
+        qdd: Joint accelerations ``(nv,)`` the controller expects (pinocchio convention).
+        wrenches: Contact wrench ``(6,)`` or force ``(3,)`` by contact name, at the contact
+            frame's origin, world axes, force first [N, N m].
+        report: Per-task feasibility report.
+        safe_mode: The safe command was sent instead of the hierarchy's solution.
+        timings: Wall-clock durations of the step's phases [s]: ``update`` (model update),
+            ``rows`` (task rows and levels), ``solve``, ``report``, ``total``.
+        t: Control time of the step [s].
+
+    """
+
+    tau: np.ndarray
+    qdd: np.ndarray
+    wrenches: Mapping[str, np.ndarray]
+    report: FeasibilityReport
+    safe_mode: bool = False
+    timings: Mapping[str, float] = field(default_factory=dict)
+    t: float = 0.0

@@ -1,0 +1,463 @@
+"""The execution layer (the seed's servo): robot state -> levels -> resolver -> torques.
+
+One control step of :class:`WholeBodyController`:
+
+1. ``model.update(q, v)``, once, shared by every task;
+2. ``Stack.advance`` (ramps, contact switching), then ``Stack.build``: the rows of every task
+   stacked into levels, apart from the solve;
+3. the resolver: one solve of the strict hierarchy (:class:`~hqp.control.resolver.HQPResolver`)
+   or the papers' null-space law (:class:`~hqp.control.nullspace.NullSpaceResolver`), giving
+   ``x = [qdd | f_1 | ... | f_k]`` and the torques of ``M qdd + h = S^T tau + J_c^T f``;
+4. torque blending after changes that cannot be ramped, the torque-limit check;
+5. a :class:`~hqp.control.command.FeasibilityReport` (:mod:`hqp.control.diagnostics`).
+
+The controller never returns NaN torques: if the resolver fails, it sends a defined safe
+command (gravity and contact-force compensation with joint damping on the current contacts)
+and says so in the report (``Command.safe_mode``).
+"""
+
+from __future__ import annotations
+
+import abc
+import time
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from hqp.control.command import Command, FeasibilityReport
+from hqp.control.diagnostics import MODES, Diagnostics
+from hqp.control.resolver import HQPResolver, Resolver
+from hqp.errors import InvalidInput
+from hqp.layout import Layout
+from hqp.stack import Stack
+from hqp.tasks.dynamics import joint_torques
+from hqp.tasks.reference import min_jerk
+
+if TYPE_CHECKING:
+    from hqp.model import RobotModel, RobotState
+    from hqp.solver import HierarchicalSolver, Solution
+    from hqp.stack import BuiltStack
+    from hqp.tasks.base import Category, Task
+
+
+class Controller(abc.ABC):
+    """Interface of a whole-body controller (HQP and null-space alike).
+
+    A controller holds a robot model, a :class:`~hqp.stack.Stack` of tasks and the declared
+    contacts; each control step turns a measured :class:`~hqp.model.RobotState` into a
+    :class:`Command`. Tasks and contacts may be added and removed while it runs; the
+    controller keeps the torques continuous (ramps, or a stated torque interpolation flagged
+    in the report as ``strictness_suspended``).
+
+    Attributes:
+        model: The controller's robot model (updated once per step).
+        stack: The ordered levels of tasks.
+        dt: Control period [s].
+
+    """
+
+    model: RobotModel
+    stack: Stack
+    dt: float
+
+    @abc.abstractmethod
+    def step(self, state: RobotState, t: float) -> Command:
+        """One control step.
+
+        Args:
+            state: Measured state (configuration, velocity, optional contact flags and wrenches).
+            t: Control time [s].
+
+        Returns:
+            The command: torques, accelerations, contact wrenches, feasibility report.
+
+        """
+
+    # -- tasks ------------------------------------------------------------------------------
+
+    def add_task(
+        self,
+        task: Task,
+        level: int | Category | None = None,
+        *,
+        t: float | None = None,
+        ramp_time: float | None = None,
+    ) -> None:
+        """Add a task at a level (default: its category's level), ramped in from zero effect.
+
+        Args:
+            task: The task (its name must be unique in the stack).
+            level: Level index, or a category whose level is used; ``None``: the task's
+                category.
+            t: Time of the addition [s] (default: the time of the last step).
+            ramp_time: Duration of the ramp [s] (default: the stack's).
+
+        """
+        self.stack.add(task, level, t=self._now(t), ramp_time=ramp_time)
+
+    def remove_task(self, name: str, *, t: float | None = None) -> None:
+        """Remove a task; the torque jump is blended out (see :class:`~hqp.stack.Stack`)."""
+        self.stack.remove(name, t=self._now(t))
+
+    def task(self, name: str) -> Task:
+        """Return a task of the stack by name."""
+        return self.stack.task(name)
+
+    # -- contacts ---------------------------------------------------------------------------
+
+    def activate_contact(self, name: str, *, t: float | None = None) -> None:
+        """Declare a contact made (its slot becomes free; the change is torque-blended)."""
+        self.stack.activate_contact(name, t=self._now(t))
+
+    def deactivate_contact(
+        self, name: str, *, t: float | None = None, unload_time: float | None = None
+    ) -> None:
+        """Release a contact: its normal force bound is ramped to zero, then the slot is freed.
+
+        Args:
+            name: Contact name.
+            t: Time at which unloading starts [s] (default: the time of the last step).
+            unload_time: Duration of the unloading ramp [s] (default: the stack's).
+
+        """
+        self.stack.deactivate_contact(name, t=self._now(t), unload_time=unload_time)
+
+    @property
+    def active_contacts(self) -> tuple[str, ...]:
+        """Names of the contacts currently active (loaded or unloading)."""
+        return self.stack.active_contacts
+
+    def _now(self, t: float | None) -> float:
+        """Time of a change: ``t`` when given, else the time of the last step (or 0)."""
+        if t is not None:
+            return float(t)
+        return float(getattr(self, "last_t", 0.0))
+
+
+class WholeBodyController(Controller):
+    """Whole-body torque controller: the servo around a resolver (HQP by default).
+
+    Args:
+        robot_model: The controller's robot model (pinocchio).
+        contacts: Contacts to declare in the stack (``hqp.tasks.contact.Contact`` tasks, their
+            physics rows at the PHYSICS level and their limits at CONTACT_LIMITS); contacts
+            already declared in ``stack`` need not be repeated.
+        stack: The levels of tasks (default: an empty :class:`~hqp.stack.Stack` with the
+            default levels).
+        dt: Control period [s].
+        backend: QP backend of the solver (``"proxsuite"``, ``"osqp"``, ``"daqp"``,
+            ``"quadprog"``).
+        algorithm: Hierarchical algorithm (``"basis"`` or ``"cascade"``).
+        final_metric: Metric ``(n, n)`` of the final tie-break (``None``: identity, i.e. the
+            minimum-norm optimum).
+        final_target: Target ``(n,)`` of the final tie-break (``None``: zero).
+        tolerance: A task whose unweighted residual norm exceeds this is in conflict.
+        singular_tolerance: A satisfied task whose projected smallest singular value is below
+            this is reported singular.
+        diagnostics: ``"full"``: per-task projected singular values and the level each
+            conflicting task yields to (a few small SVDs per step); ``"residuals"``: per-task
+            residuals only, the level's ``sigma_min`` from the solver, no ``yields_to``.
+        damping: Joint damping of the safe command [N m s/rad].
+        resolver: What solves the built levels (default: an :class:`HQPResolver` of
+            ``backend``, ``algorithm``, ``final_metric``, ``final_target``).
+
+    Raises:
+        InvalidInput: Bad period, tolerance or diagnostics mode; a contact frame not in the
+            model.
+        UnknownBackend: Unknown backend.
+
+    """
+
+    def __init__(
+        self,
+        robot_model: RobotModel,
+        contacts: Sequence[Task] = (),
+        stack: Stack | None = None,
+        dt: float = 0.001,
+        backend: str = "proxsuite",
+        algorithm: str = "basis",
+        *,
+        final_metric: np.ndarray | None = None,
+        final_target: np.ndarray | None = None,
+        tolerance: float = 1e-5,
+        singular_tolerance: float = 1e-4,
+        diagnostics: str = "full",
+        damping: float = 2.0,
+        resolver: Resolver | None = None,
+    ) -> None:
+        if not np.isfinite(dt) or dt <= 0.0:
+            raise InvalidInput(f"WholeBodyController: dt must be positive, got {dt}")
+        if diagnostics not in MODES:
+            raise InvalidInput(
+                "WholeBodyController: diagnostics must be 'full' or 'residuals', "
+                f"got {diagnostics!r}"
+            )
+        for label, value in (("tolerance", tolerance), ("singular_tolerance", singular_tolerance),
+                             ("damping", damping)):
+            if not np.isfinite(value) or value < 0.0:
+                raise InvalidInput(f"WholeBodyController: {label} must be >= 0, got {value}")
+        self.model = robot_model
+        self.stack = Stack() if stack is None else stack
+        for contact in contacts:
+            if contact.name not in self.stack.contacts:
+                self.stack.add_contact(contact)
+        for name, frame, _ in self.stack.layout_contacts():
+            robot_model.frame_id(frame, f"WholeBodyController: contact {name!r}")
+        self.layout = Layout.build(robot_model.nv, self.stack.layout_contacts())
+        self.dt = float(dt)
+        self.resolver: Resolver = resolver if resolver is not None else HQPResolver(
+            backend, algorithm, final_metric=final_metric, final_target=final_target)
+        self.feasibility = Diagnostics(tolerance, singular_tolerance, diagnostics)
+        self.diagnostics = diagnostics
+        self.damping = float(damping)
+        self.last_t = 0.0
+        self.last_x: np.ndarray | None = None
+        self.last_tau: np.ndarray | None = None
+        self.last_built: BuiltStack | None = None
+        self._blend_start: float | None = None
+        self._blend_delta: np.ndarray | None = None
+        self._blend_notes: tuple[str, ...] = ()
+        self._blend_contact: str | None = None
+        self._blend_resolver: Resolver | None = None
+
+    @property
+    def backend(self) -> str:
+        """The resolver's backend (``"nullspace"`` for the law)."""
+        return self.resolver.backend
+
+    @property
+    def algorithm(self) -> str:
+        """The resolver's algorithm (``"nullspace"`` for the law)."""
+        return self.resolver.algorithm
+
+    @property
+    def tolerance(self) -> float:
+        """Residual norm above which a task is in conflict."""
+        return self.feasibility.tolerance
+
+    @property
+    def singular_tolerance(self) -> float:
+        """Threshold of the SINGULAR status."""
+        return self.feasibility.singular_tolerance
+
+    @property
+    def solver(self) -> HierarchicalSolver | None:
+        """The HQP resolver's primary solver (``None`` for a resolver without one)."""
+        return getattr(self.resolver, "solver", None)
+
+    @solver.setter
+    def solver(self, solver: HierarchicalSolver) -> None:
+        self.resolver.solver = solver  # type: ignore[attr-defined]
+
+    @property
+    def final_metric(self) -> np.ndarray | None:
+        """The HQP resolver's final tie-break metric ``(n, n)`` (settable)."""
+        return getattr(self.resolver, "final_metric", None)
+
+    @final_metric.setter
+    def final_metric(self, value: np.ndarray | None) -> None:
+        self.resolver.final_metric = value  # type: ignore[attr-defined]
+
+    @property
+    def final_target(self) -> np.ndarray | None:
+        """The HQP resolver's final tie-break target ``(n,)`` (settable)."""
+        return getattr(self.resolver, "final_target", None)
+
+    @final_target.setter
+    def final_target(self, value: np.ndarray | None) -> None:
+        self.resolver.final_target = value  # type: ignore[attr-defined]
+
+    @property
+    def last_solution(self) -> Solution | None:
+        """The solver's solution of the last step (``None``: safe mode, or not an HQP)."""
+        return getattr(self.resolver, "last_solution", None)
+
+    # -- one step ---------------------------------------------------------------------------
+
+    def step(self, state: RobotState, t: float) -> Command:
+        """One control step: update, rows, solve, torques, feasibility report.
+
+        Args:
+            state: Measured state (``q`` ``(nq,)``, ``v`` ``(nv,)`` in pinocchio's convention).
+            t: Control time [s].
+
+        Returns:
+            The command; ``safe_mode`` when the solve failed or returned non-finite values.
+
+        Raises:
+            InvalidInput: The state has the wrong shape or holds NaN or inf.
+
+        """
+        clock = time.perf_counter
+        t0 = clock()
+        self.model.update(state.q, state.v)
+        t1 = clock()
+        x_prev = self.last_x
+        declared = self.stack.layout_contacts()
+        if [(c.name, c.frame, c.kind) for c in self.layout.contacts] != declared:
+            self._relayout()
+            x_prev = None
+        self.stack.advance(self.model, self.layout, self.dt, t, x_prev)
+        built = self.stack.build(self.model, self.layout, self.dt, t)
+        self._start_blend(t)
+        before = self._build_before_contact(t)
+        t2 = clock()
+        notes: list[str] = []
+        tau_before = None if before is None else self._solve_before(before, t)
+        result = self.resolver.solve(self.model, self.layout, self.stack, built, t, notes)
+        t3 = clock()
+        safe = result is None
+        if result is None:
+            tau, qdd, wrenches = self.safe_command()
+            notes.append("safe mode: gravity and contact compensation with joint damping")
+            self.last_x = None
+        else:
+            x, tau = result
+            qdd = x[: self.layout.nv].copy()
+            wrenches = {c.name: x[c.slice].copy() for c in self.layout.contacts}
+            self.last_x = x.copy()
+        tau, suspended = self._blend(tau, t, notes, tau_before)
+        tau = self._clip(tau, notes)
+        t4 = clock()
+        statuses, costs = self.resolver.report(built, None if result is None else result[0],
+                                               notes, self.feasibility)
+        report = FeasibilityReport(
+            tasks=statuses,
+            safe_mode=safe,
+            strictness_suspended=suspended,
+            notes=tuple(notes),
+            level_costs=costs,
+        )
+        t5 = clock()
+        self.last_t = float(t)
+        self.last_tau = tau
+        self.last_built = built
+        timings = {"update": t1 - t0, "rows": t2 - t1, "solve": t3 - t2, "torques": t4 - t3,
+                   "report": t5 - t4, "total": t5 - t0}
+        return Command(tau=tau, qdd=qdd, wrenches=wrenches, report=report, safe_mode=safe,
+                       timings=timings, t=float(t))
+
+    def _clip(self, tau: np.ndarray, notes: list[str]) -> np.ndarray:
+        """Torques within the model's limits; a clip beyond rounding is noted."""
+        excess = np.abs(tau) - self.model.tau_max
+        if np.any(excess > 0.0):
+            # The solver meets the torque-limit rows to its tolerance: entries beyond by less
+            # than 1e-6 relative (or 1e-6 N m) are rounding; larger ones are reported.
+            worst = float(excess.max())
+            tau = np.clip(tau, -self.model.tau_max, self.model.tau_max)
+            if np.any(excess > 1e-6 * np.maximum(1.0, self.model.tau_max)):
+                notes.append(f"command clipped to the model's torque limits (by up to "
+                             f"{worst:.3g} N m)")
+        return tau
+
+    def _relayout(self) -> None:
+        self.layout = Layout.build(self.model.nv, self.stack.layout_contacts())
+        self.last_x = None
+        self.resolver.reset()
+
+    # -- torques ----------------------------------------------------------------------------
+
+    def torques(self, x: np.ndarray) -> np.ndarray:
+        """Actuated torques of a solution: ``tau = S (M qdd + h - sum_c J_c^T f_c)`` ``(na,)``.
+
+        The model must be updated at the state the solution was computed for.
+        """
+        return joint_torques(self.model, self.layout, x)
+
+    def safe_command(self) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
+        """Compute the safe command: gravity and contact compensation with joint damping.
+
+        The contact wrenches ``f`` are the least-norm solution of the floating-base rows of the
+        static equilibrium ``g_u = sum_c J_{c,u}^T f_c`` over the active contacts; then
+        ``tau = g_a - sum_c J_{c,a}^T f_c - D v_a`` with ``D = damping * I``, clipped to the
+        torque limits.
+
+        Returns:
+            ``(tau (na,), qdd (nv,) zeros, wrenches by contact name)``.
+
+        """
+        m = self.model
+        act = m.actuated
+        g = m.gravity
+        active = [s for s in self.layout.contacts if s.name in self.stack.active_contacts]
+        wrenches = {s.name: np.zeros(s.size) for s in self.layout.contacts}
+        tau = g[act] - self.damping * m.v[act]
+        if active and m.nv_base:
+            Js = [m.frame_jacobian(s.frame)[: s.size] for s in active]
+            JT = np.hstack([J.T for J in Js])  # (nv, sum sizes)
+            f, *_ = np.linalg.lstsq(JT[: m.nv_base], g[: m.nv_base], rcond=None)
+            tau = tau - JT[act] @ f
+            start = 0
+            for s in active:
+                wrenches[s.name] = f[start:start + s.size]
+                start += s.size
+        tau = np.clip(np.nan_to_num(tau), -m.tau_max, m.tau_max)
+        return tau, np.zeros(m.nv), wrenches
+
+    def _start_blend(self, t: float) -> None:
+        """Start a torque blend on the stack's blend events of this step (if any).
+
+        A contact made alone is blended between two hierarchies (see :meth:`_blend`); any
+        other change (or several at once) by a decaying offset.
+        """
+        events = self.stack.pop_events()
+        if not events or self.last_tau is None or self.stack.blend_time <= 0.0:
+            return
+        self._blend_start = float(t)
+        self._blend_delta = None  # set by _blend at this step (needs the new torques)
+        self._blend_notes = tuple(e.note for e in events)
+        contacts = {e.contact for e in events}
+        self._blend_contact = contacts.pop() if len(events) == 1 and None not in contacts else None
+
+    def _build_before_contact(self, t: float) -> BuiltStack | None:
+        """Levels of the hierarchy without the contact being blended in (``None``: no blend)."""
+        name = self._blend_contact
+        if self._blend_start is None or name is None or name not in self.stack.active_contacts:
+            self._blend_contact = None
+            return None
+        with self.stack.contact_released(name):
+            return self.stack.build(self.model, self.layout, self.dt, t)
+
+    def _solve_before(self, before: BuiltStack, t: float) -> np.ndarray | None:
+        """Torques of the hierarchy without the contact being blended in (own resolver).
+
+        Solved before the current hierarchy, with a twin of the resolver created once (its own
+        warm starts), so that what the resolver keeps of the step is the current hierarchy's.
+        """
+        if self._blend_resolver is None:
+            self._blend_resolver = self.resolver.twin()
+        result = self._blend_resolver.solve(self.model, self.layout, self.stack, before, t, [])
+        return None if result is None else result[1]
+
+    def _blend(
+        self, tau: np.ndarray, t: float, notes: list[str], tau_before: np.ndarray | None = None
+    ) -> tuple[np.ndarray, bool]:
+        """Interpolate torques over ``blend_time`` after a change that cannot be ramped.
+
+        With ``tau_before`` (a contact just made: the torques of the hierarchy without it, at
+        the current state), ``tau = (1 - s) tau_before + s tau`` for a minimum-jerk fraction
+        ``s`` rising from 0 to 1: the new contact's wrench is phased in and both hierarchies
+        keep their feedback; a step change of the new hierarchy early in the blend reaches the
+        torques scaled by ``s``. Otherwise (a task or contact removed, or the hierarchy
+        without the contact failed) the offset between the last torques and the new ones at
+        the change decays: ``tau + (1 - s) (tau_last - tau_0)``.
+        """
+        if self._blend_start is None:
+            return tau, False
+        s = min_jerk((t - self._blend_start) / self.stack.blend_time)
+        if s >= 1.0:
+            self._blend_start = None
+            self._blend_contact = None
+            return tau, False
+        notes.append(
+            f"strictness suspended: torques interpolated over {self.stack.blend_time:g} s after "
+            + "; ".join(self._blend_notes)
+        )
+        if tau_before is not None:
+            self._blend_delta = None
+            return (1.0 - s) * tau_before + s * tau, True
+        if self._blend_delta is None:
+            last = self.last_tau if self.last_tau is not None else tau
+            self._blend_delta = last - tau
+        return tau + (1.0 - s) * self._blend_delta, True
