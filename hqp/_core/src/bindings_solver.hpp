@@ -5,10 +5,12 @@
 #include <nanobind/eigen/dense.h>
 #include <nanobind/nanobind.h>
 #include <nanobind/ndarray.h>
+#include <nanobind/stl/optional.h>
 #include <nanobind/stl/string.h>
 
 #include <algorithm>
 #include <cstdint>
+#include <optional>
 #include <vector>
 
 #include <cmath>
@@ -16,6 +18,7 @@
 #include <string>
 
 #include "solver/hierarchy.hpp"
+#include "solver/nnls.hpp"
 
 namespace hqp {
 
@@ -170,6 +173,20 @@ inline void bind_solver(nb::module_& m) {
       nb::arg("H"), nb::arg("g"), nb::arg("C"), nb::arg("lo"), nb::arg("up"),
       "The compiled level QP (DAQP with the hierarchy's retries): min 0.5 v'Hv + g'v, "
       "lo <= C v <= up; returns (v, converged). For tests.");
+  m.def(
+      "nnls",
+      [](const Eigen::MatrixXd& A, const Eigen::VectorXd& b, double res_tol, int max_outer,
+         std::optional<Eigen::VectorXi> warm) {
+        Nnls solver;
+        const bool ok = solver.solve(A, b, res_tol, max_outer, warm ? &*warm : nullptr);
+        return nb::make_tuple(Eigen::VectorXd(solver.x()), solver.residual(), ok,
+                              solver.steps());
+      },
+      nb::arg("A"), nb::arg("b"), nb::arg("res_tol"), nb::arg("max_outer"),
+      nb::arg("warm").none() = nb::none(),
+      "The native solver's non-negative least squares: min ||A x - b||, x >= 0, early exit "
+      "at res_tol (< 0: none); returns (x, residual, residual <= res_tol, column entries). "
+      "For tests.");
 #ifdef HQP_CHECK_MALLOC
   m.attr("malloc_checked") = true;
 #else

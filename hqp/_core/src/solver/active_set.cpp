@@ -17,7 +17,8 @@ double max_abs(const MatrixXd& M) { return M.size() ? M.cwiseAbs().maxCoeff() : 
 }  // namespace
 
 bool ActiveSetSolver::signed_multipliers(Index nheld, double dtol) {
-  // Lawson-Hanson NNLS: min ||B mu + grad||, mu >= 0, with B = K^T diag(sign).
+  // Non-negative least squares: min ||B mu + grad||, mu >= 0, with B = K^T diag(sign), warm
+  // started from the columns that were positive at the last call on the same carried rows
   const Index nv = Kh_.cols();
   nn_A_.resize(nv, nheld);
   for (Index j = 0; j < nheld; ++j) {
@@ -25,80 +26,19 @@ bool ActiveSetSolver::signed_multipliers(Index nheld, double dtol) {
   }
   nn_b_.resize(nv);
   nn_b_ = -grad_;
-  nn_x_.setZero(nheld);
-  nn_set_.setZero(nheld);
-  nn_w_.resize(nheld);
-  nn_z_.resize(nheld);
-  const double eps = std::numeric_limits<double>::epsilon();
-  const double tol =
-      10.0 * double(std::max(nv, nheld)) * eps * nn_A_.cwiseAbs().colwise().sum().maxCoeff();
-  const int max_outer = int(50 * nheld);
-  // each step's least squares on the passive columns from the Gram matrix, formed once
-  // (a few microseconds a step instead of a pivoted QR of B's columns); an inaccurate step
-  // can only fail the final residual check, which is computed from B directly
-  nn_G_.resize(nheld, nheld);
-  nn_G_.noalias() = nn_A_.transpose() * nn_A_;
-  nn_g_.resize(nheld);
-  nn_g_.noalias() = nn_A_.transpose() * nn_b_;
-  auto solve_passive = [&]() {
-    const Index np = nn_set_.sum();
-    nn_P_.resize(np, np);
-    tmp_.resize(np);
-    for (Index a = 0, ia = 0; a < nheld; ++a) {
-      if (!nn_set_(a)) continue;
-      tmp_(ia) = nn_g_(a);
-      for (Index b = 0, ib = 0; b < nheld; ++b) {
-        if (nn_set_(b)) nn_P_(ia, ib++) = nn_G_(a, b);
-      }
-      ++ia;
-    }
-    nn_ldlt_.compute(nn_P_);
-    nn_ldlt_.solveInPlace(tmp_);
-    nn_z_.setZero();
-    for (Index j = 0, c = 0; j < nheld; ++j)
-      if (nn_set_(j)) nn_z_(j) = tmp_(c++);
-  };
-  const double res_tol = dtol * std::max(1.0, std::sqrt(double(grad_.size())));
-  for (int outer = 0; outer < max_outer; ++outer) {
-    res_.resize(nv);
-    res_.noalias() = nn_b_ - nn_A_ * nn_x_;
-    // x stays non-negative through Lawson-Hanson's steps: once the residual meets the
-    // check, signed multipliers exist (the early exit of a feasibility question)
-    if (res_.norm() <= res_tol) return true;
-    nn_w_.noalias() = nn_A_.transpose() * res_;
-    Index jmax = -1;
-    double wmax = tol;
-    for (Index j = 0; j < nheld; ++j) {
-      if (!nn_set_(j) && nn_w_(j) > wmax) {
-        wmax = nn_w_(j);
-        jmax = j;
-      }
-    }
-    if (jmax < 0) break;
-    nn_set_(jmax) = 1;
-    solve_passive();
-    for (int inner = 0; inner < 3 * int(nheld) + 3; ++inner) {
-      double alpha = 2.0;
-      for (Index j = 0; j < nheld; ++j) {
-        if (nn_set_(j) && nn_z_(j) <= 0.0) {
-          const double a = nn_x_(j) / (nn_x_(j) - nn_z_(j));
-          alpha = std::min(alpha, a);
-        }
-      }
-      if (alpha > 1.0) break;
-      nn_x_ += alpha * (nn_z_ - nn_x_);
-      for (Index j = 0; j < nheld; ++j) {
-        if (nn_set_(j) && nn_x_(j) <= tol) {
-          nn_set_(j) = 0;
-          nn_x_(j) = 0.0;
-        }
-      }
-      solve_passive();
-    }
-    nn_x_ = nn_z_;
+  const Index p = nn_memo_.size();
+  const bool warm = p > 0;
+  if (warm) {
+    nn_warm_.resize(nheld);
+    for (Index j = 0; j < nheld; ++j) nn_warm_(j) = nn_memo_(held_(j));
   }
-  res_.noalias() = nn_b_ - nn_A_ * nn_x_;
-  return res_.norm() <= res_tol;
+  const double res_tol = dtol * std::max(1.0, std::sqrt(double(grad_.size())));
+  const bool ok = nnls_.solve(nn_A_, nn_b_, res_tol, int(50 * nheld), warm ? &nn_warm_ : nullptr);
+  if (warm) {
+    nn_memo_.setZero();
+    for (Index j = 0; j < nheld; ++j) nn_memo_(held_(j)) = nnls_.passive()(j);
+  }
+  return ok;
 }
 
 bool ActiveSetSolver::solve(const LevelRows& L, const CarriedRows& K, IVec& s, IVec& w,
@@ -108,6 +48,7 @@ bool ActiveSetSolver::solve(const LevelRows& L, const CarriedRows& K, IVec& s, I
   const Index ma = L.A.rows();
   const Index mc = L.C.rows();
   const Index p = K.G.rows();
+  if (nn_memo_.size() != p) nn_memo_.setZero(p);
   // a stale guess may hold a row at a bound that is now infinite: release it
   for (Index i = 0; i < mc; ++i) {
     if ((s(i) > 0 && !std::isfinite(L.up(i))) || (s(i) < 0 && !std::isfinite(L.lo(i)))) s(i) = 0;

@@ -12,6 +12,7 @@
 #include <Eigen/Cholesky>
 
 #include "solver/linalg.hpp"
+#include "solver/nnls.hpp"
 
 namespace hqp {
 
@@ -50,10 +51,10 @@ class ActiveSetSolver {
   IVec sel_, held_, wp_, s_new_, w_new_, dep_g_, free_;
   std::vector<IVec> seen_s_, seen_w_;
   // NNLS workspace
-  MatrixXd nn_A_, nn_P_, nn_G_;
-  VectorXd nn_x_, nn_w_, nn_z_, nn_b_, nn_g_;
-  Eigen::LDLT<MatrixXd> nn_ldlt_;
-  IVec nn_set_;
+  Nnls nnls_;
+  MatrixXd nn_A_;
+  VectorXd nn_b_;
+  IVec nn_warm_, nn_memo_;  // per held row / per carried row: positive at the last call
 };
 
 /// The active set of a point: level rows by the side they violate, carried rows held when
