@@ -15,14 +15,12 @@ Checked here:
   entry that no longer occurs);
 - no cycle of module-level imports (those under ``if TYPE_CHECKING:`` included, although
   they do not run);
-- no cycle through a command-line module even counting imports inside functions (the
-  cycle ``hqp.cli`` -> ``comparisons.command`` / ``hqp.behaviors.command`` -> ``hqp.cli``
-  that ``hqp.console`` removed).
+- no cycle through a module of the application (``hqp/app``) even counting imports inside
+  functions.
 
-Imports inside functions are how the code dodges cycles today; they are not failed here
-(issue 15 is to remove them). At the time of writing there are 145 of them (import
-statements and ``import_module`` calls; 117 distinct pairs of modules), and one cycle that
-only they close: ``comparisons.common`` <-> ``comparisons.placo_runner``.
+Imports inside functions are not failed here. Issue 15 took them from 145 to about 40
+(most left in ``comparisons/``), and one cycle only they close:
+``comparisons.common`` <-> ``comparisons.placo_runner``.
 """
 
 from __future__ import annotations

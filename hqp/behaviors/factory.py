@@ -17,6 +17,14 @@ from hqp.behaviors.spec import TaskSpec
 from hqp.errors import BehaviorFileError, HQPError
 from hqp.model import RobotModel
 from hqp.tasks.base import Task
+from hqp.tasks.centroidal import CentroidalMomentumTask
+from hqp.tasks.com import CoMTask
+from hqp.tasks.effort import EffortTask, ForceRegularization
+from hqp.tasks.gaze import GazeTask
+from hqp.tasks.orientation import OrientationTask
+from hqp.tasks.pose import PoseTask
+from hqp.tasks.position import PositionTask
+from hqp.tasks.posture import PostureTask
 
 _GAIN_KEYS = ("kp", "kv", "max_velocity", "max_acceleration")
 
@@ -138,8 +146,6 @@ class TaskFactory:
     # builders -------------------------------------------------------------------------------
 
     def _build_com(self, spec: TaskSpec, gains: dict[str, float]) -> Task:
-        from hqp.tasks.com import CoMTask
-
         axes = spec.params.get("axes", "xyz")
         if axes not in ("xy", "xyz"):
             raise BehaviorFileError(f"task {spec.name!r}: com axes must be 'xy' or 'xyz' "
@@ -149,26 +155,18 @@ class TaskFactory:
                        **gains)
 
     def _build_position(self, spec: TaskSpec, gains: dict[str, float]) -> Task:
-        from hqp.tasks.position import PositionTask
-
         return PositionTask(self.model, spec.frames["frame"], axes=spec.params.get("axes"),
                             name=spec.name, weight=spec.weight, **gains)
 
     def _build_orientation(self, spec: TaskSpec, gains: dict[str, float]) -> Task:
-        from hqp.tasks.orientation import OrientationTask
-
         return OrientationTask(self.model, spec.frames["frame"], name=spec.name,
                                weight=spec.weight, **gains)
 
     def _build_pose(self, spec: TaskSpec, gains: dict[str, float]) -> Task:
-        from hqp.tasks.pose import PoseTask
-
         return PoseTask(self.model, spec.frames["frame"], name=spec.name, weight=spec.weight,
                         **gains)
 
     def _build_gaze(self, spec: TaskSpec, gains: dict[str, float]) -> Task:
-        from hqp.tasks.gaze import GazeTask
-
         kwargs: dict[str, Any] = {}
         if "axis" in spec.params:
             kwargs["axis"] = np.asarray(spec.params["axis"], dtype=float)
@@ -176,21 +174,15 @@ class TaskFactory:
                         **kwargs, **gains)
 
     def _build_posture(self, spec: TaskSpec, gains: dict[str, float]) -> Task:
-        from hqp.tasks.posture import PostureTask
-
         kwargs: dict[str, Any] = {}
         if "joints" in spec.params:
             kwargs["joints"] = list(spec.params["joints"])
         return PostureTask(self.model, name=spec.name, weight=spec.weight, **kwargs, **gains)
 
     def _build_effort(self, spec: TaskSpec, gains: dict[str, float]) -> Task:
-        from hqp.tasks.effort import EffortTask
-
         return EffortTask(self.model, name=spec.name, weight=spec.weight)
 
     def _build_momentum(self, spec: TaskSpec, gains: dict[str, float]) -> Task:
-        from hqp.tasks.centroidal import CentroidalMomentumTask
-
         part = spec.params.get("part", "angular")
         if part not in ("angular", "linear", "all"):
             raise BehaviorFileError(f"task {spec.name!r}: momentum part must be 'angular', "
@@ -204,8 +196,6 @@ class TaskFactory:
                                       **kwargs)
 
     def _build_forces(self, spec: TaskSpec, gains: dict[str, float]) -> Task:
-        from hqp.tasks.effort import ForceRegularization
-
         return ForceRegularization(self.model, name=spec.name, weight=spec.weight)
 
     # goal setters -----------------------------------------------------------------------------

@@ -32,7 +32,8 @@ from hqp.behaviors.spec import (
     TaskSpec,
     Transition,
 )
-from hqp.errors import BehaviorFileError
+from hqp.errors import BehaviorFileError, UnknownName
+from hqp.solver.backend import known_backends
 from hqp.tasks.base import Category
 
 LIBRARY = Path(__file__).resolve().parent / "library"
@@ -126,7 +127,6 @@ def resolve(source: str | Path) -> Path:
     candidate = LIBRARY / f"{source}.toml"
     if candidate.is_file():
         return candidate
-    from hqp.errors import UnknownName
 
     raise UnknownName("behavior", str(source), library_names())
 
@@ -222,8 +222,6 @@ def parse_behavior(
             raise ctx.error(("behavior", "max_joint_acceleration"),
                             f"expected at least 5 rad/s^2, got {max_qdd}")
     if backend is not None:
-        from hqp.solver.backend import known_backends
-
         if backend not in known_backends():
             raise ctx.error(("behavior", "backend"), f"unknown QP backend {backend!r}; "
                             f"expected one of {', '.join(known_backends())}")

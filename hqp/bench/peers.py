@@ -18,6 +18,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from hqp.bench.daqp_hier import daqp_hierarchy_data, solve_daqp_hierarchy
+from hqp.nullspace import prioritized_torques
 from hqp.solver import Level
 
 
@@ -33,8 +35,6 @@ class DaqpHierarchy:
             InvalidLevel: Malformed levels (as the contract solver).
 
         """
-        from hqp.bench.daqp_hier import daqp_hierarchy_data, solve_daqp_hierarchy
-
         return solve_daqp_hierarchy(daqp_hierarchy_data(levels))
 
 
@@ -50,8 +50,6 @@ def nullspace_law_x(step: object) -> np.ndarray:
         step: A :class:`hqp.bench.recorded.RecordedStep`.
 
     """
-    from hqp.nullspace import prioritized_torques
-
     s = step
     law = prioritized_torques(s.M, s.h, list(s.law_levels), S=s.S, support=s.support,
                               internal_forces="min-norm")
@@ -60,8 +58,6 @@ def nullspace_law_x(step: object) -> np.ndarray:
 
 def nullspace_law_solve(step: object) -> object:
     """One solve of the law on a recorded step (timed by the benchmark)."""
-    from hqp.nullspace import prioritized_torques
-
     s = step
     return prioritized_torques(s.M, s.h, list(s.law_levels), S=s.S, support=s.support,
                                internal_forces="min-norm")

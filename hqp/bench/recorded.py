@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 
 from hqp.errors import HQPError
+from hqp.nullspace import law_problem
 from hqp.solver import Level
 
 DATA_DIR = Path(__file__).resolve().parent / "data"
@@ -101,8 +102,6 @@ def capture(controller: Any, source: str, robot: str, t: float) -> RecordedStep:
         RecordingError: The controller has not stepped yet.
 
     """
-    from hqp.nullspace import law_problem
-
     built = controller.last_built
     if built is None:
         raise RecordingError("capture: the controller has not made a step yet")

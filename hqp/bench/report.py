@@ -6,6 +6,8 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from hqp.bench.plots import write_suite_plots
+
 COLUMNS = (
     ("suite", "suite"),
     ("source", "source"),
@@ -73,7 +75,6 @@ def write_plots(result: dict, directory: str | Path) -> list[Path]:
     paths = []
     if result.get("suite") in ("controller", "recorded", "all"):
         # time against size and per-level accuracy of whole steps (hqp.bench.plots)
-        from hqp.bench.plots import write_suite_plots
 
         paths += write_suite_plots(result, out)
         rows = [r for r in rows if r.get("suite", result.get("suite")) == "solver"]

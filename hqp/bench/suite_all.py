@@ -9,6 +9,8 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
+from hqp.bench import get_suite
+
 PARTS = ("solver", "controller", "recorded")
 """The suites run by ``all``, in order."""
 
@@ -16,8 +18,6 @@ PARTS = ("solver", "controller", "recorded")
 def run(*, quick: bool = False, progress: Callable[[str], None] | None = None
         ) -> list[dict[str, Any]]:
     """Run every suite of :data:`PARTS`; return their rows, each tagged with its suite."""
-    from hqp.bench import get_suite
-
     rows: list[dict[str, Any]] = []
     for name in PARTS:
         if progress is not None:

@@ -2,10 +2,10 @@
 
 Per robot (``paper-humanoid``, ``g1``, ``talos``), the same states are handed to:
 
-- ``hqp/<algorithm>/<backend>``: :func:`hqp.controller.standing_controller` (both soles in
+- ``hqp/<algorithm>/<backend>``: :func:`hqp.control.presets.standing_controller` (both soles in
   contact, centre of mass, trunk upright, posture, torque, friction, centre-of-pressure and
   viable joint limits; ``diagnostics="residuals"``: per-task residual flags, no per-task SVDs);
-- ``nullspace``: :func:`hqp.nullspace.standing_nullspace_controller` (same stack, joint limits
+- ``nullspace``: :func:`hqp.control.presets.standing_nullspace_controller` (same stack, joint limits
   as the papers' activation zones; inequalities not enforced);
 - ``placo``: PlaCo's ``DynamicsSolver`` on the same task set (:mod:`hqp.bench.placo_step`).
 
@@ -32,6 +32,11 @@ import numpy as np
 
 from hqp.bench.accuracy import ExcessTracker, level_costs
 from hqp.bench.interleave import Samples, interleaved
+from hqp.bench.placo_step import PlacoStanding
+from hqp.bench.recorded import DATA_DIR, load
+from hqp.control.presets import standing_controller, standing_nullspace_controller
+from hqp.model import RobotState
+from hqp.robots import load as load_robot
 from hqp.solver import ALGORITHMS, available_backends, supports
 
 ROBOTS = ("paper-humanoid", "g1", "talos")
@@ -47,9 +52,6 @@ states) is not interleaved: its row reports the probe (``"probe_only": true``)."
 
 def states(robot_name: str, count: int = 8, seed: int = 0) -> list[tuple[np.ndarray, np.ndarray]]:
     """States ``(q, v)`` of the suite for a robot (see the module docstring)."""
-    from hqp.bench.recorded import DATA_DIR, load
-    from hqp.robots import load as load_robot
-
     path = DATA_DIR / f"stand_{robot_name}.npz"
     if path.is_file():
         steps = load(path)
@@ -88,24 +90,16 @@ class _Stepper:
         self.levels: list[list[float]] = []
         self.record = False
         if name == "placo":
-            from hqp.bench.placo_step import PlacoStanding
-
             self.placo = PlacoStanding(robot, dt)
             self.ctrl = None
         elif name == "nullspace":
-            from hqp.nullspace import standing_nullspace_controller
-
             self.ctrl = standing_nullspace_controller(robot, dt=dt, diagnostics="residuals")
         else:
-            from hqp.controller import standing_controller
-
             _, algorithm, backend = name.split("/")
             self.ctrl = standing_controller(robot, dt=dt, backend=backend, algorithm=algorithm,
                                             diagnostics="residuals")
 
     def __call__(self) -> object:
-        from hqp.model import RobotState
-
         q, v = self.states[self.i % len(self.states)]
         t = T0 + self.i * self.dt
         self.i += 1
@@ -124,8 +118,6 @@ class _Stepper:
 def _accuracy(steppers: dict[str, _Stepper], sts: list[tuple[np.ndarray, np.ndarray]]
               ) -> tuple[dict[str, np.ndarray], dict[str, float]]:
     """Excess per level and contract excess (largest over the states) on the hqp levels."""
-    from hqp.model import RobotState
-
     hqp_names = [n for n in steppers if n.startswith("hqp/")]
     if not hqp_names:
         return {}, {}
@@ -156,8 +148,6 @@ def run_robot(robot_name: str, names: Sequence[str], *, quick: bool = False,
               progress: Callable[[str], None] | None = None) -> list[dict[str, Any]]:
     """Rows of one robot."""
     import time
-
-    from hqp.robots import load as load_robot
 
     robot = load_robot(robot_name)
     sts = states(robot_name, count=2 if quick else 8)

@@ -24,6 +24,7 @@ import numpy as np
 
 from hqp.errors import InvalidInput, check_array
 from hqp.model import RobotState
+from hqp.sim import convert
 
 if TYPE_CHECKING:
     from hqp.robots import Robot
@@ -84,8 +85,6 @@ class Simulator:
         torque_limits: np.ndarray | None = None,
     ) -> None:
         import mujoco
-
-        from hqp.sim import convert
 
         if not np.isfinite(dt) or dt <= 0.0:
             raise InvalidInput(f"Simulator: dt must be positive, got {dt}")
