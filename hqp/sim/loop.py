@@ -172,6 +172,19 @@ def push_force(pushes: Sequence[Push], t: float) -> np.ndarray | None:
     return force if np.any(force) else None
 
 
+def check_run(duration: float, delay_steps: int, where: str) -> None:
+    """Check a run's duration [s] (> 0) and measurement delay [steps] (>= 0).
+
+    Raises:
+        InvalidInput: Either is out of range (the message starts with ``where``).
+
+    """
+    if not np.isfinite(duration) or duration <= 0.0:
+        raise InvalidInput(f"{where}: duration must be positive, got {duration}")
+    if delay_steps < 0:
+        raise InvalidInput(f"{where}: delay_steps must be >= 0, got {delay_steps}")
+
+
 def closed_loop(
     sim: Simulator,
     controller: Steppable,
@@ -207,10 +220,7 @@ def closed_loop(
             unknown clock.
 
     """
-    if not np.isfinite(duration) or duration <= 0.0:
-        raise InvalidInput(f"closed loop: duration must be positive, got {duration}")
-    if delay_steps < 0:
-        raise InvalidInput(f"closed loop: delay_steps must be >= 0, got {delay_steps}")
+    check_run(duration, delay_steps, "closed loop")
     if clock not in ("simulator", "steps"):
         raise InvalidInput(f"closed loop: clock must be 'simulator' or 'steps', got {clock!r}")
     timed = sorted([e for e in events if isinstance(e, Event)], key=lambda e: e.t)

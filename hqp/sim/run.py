@@ -15,8 +15,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from hqp.errors import InvalidInput
-from hqp.sim.loop import Event, Noise, Outcome, Push, Step, closed_loop
+from hqp.sim.loop import Event, Noise, Outcome, Push, Step, check_run, closed_loop
 from hqp.sim.simulator import Simulator, inside_polygon
 
 if TYPE_CHECKING:
@@ -264,10 +263,7 @@ def simulate(
         InvalidInput: Non-positive duration or negative delay.
 
     """
-    if not np.isfinite(duration) or duration <= 0.0:
-        raise InvalidInput(f"simulate: duration must be positive, got {duration}")
-    if delay_steps < 0:
-        raise InvalidInput(f"simulate: delay_steps must be >= 0, got {delay_steps}")
+    check_run(duration, delay_steps, "simulate")
     if sim is None:
         sim = Simulator(robot, dt=getattr(controller, "dt", 0.001))
         sim.reset(q0, v0)
