@@ -56,7 +56,7 @@ def command(args: argparse.Namespace, out: TextIO | None = None,
 
     With ``--json``, everything written to stdout during the runs (by Python
     or by C libraries) is sent to stderr, and stdout receives the JSON object
-    alone (:func:`hqp.console.stdout_to_stderr`).
+    alone (:func:`hqp.app.console.stdout_to_stderr`).
 
     Args:
         args: Parsed arguments (:func:`add_arguments`).

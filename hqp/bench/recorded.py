@@ -8,8 +8,9 @@ the actuation selection). Replaying them times the solve alone, level matrices f
 every algorithm and backend, DAQP's hierarchy and the law, on exactly the same numbers.
 
 Files are compressed ``.npz`` archives, one per source (behavior or scenario on one robot),
-written by :mod:`hqp.bench.record` into :data:`DATA_DIR`. Keys: ``meta`` (a JSON string:
-source, robot, per-step times and level names), and per step ``i`` and level ``j``:
+written by :mod:`hqp.bench.record` (``python -m hqp.app.record``) into :data:`DATA_DIR`.
+Keys: ``meta`` (a JSON string: source, robot, per-step times and level names), and per step
+``i`` and level ``j``:
 ``s{i}_L{j}_{A,b,C,lower,upper}`` (absent fields were ``None``), ``s{i}_{M,h,S,q,v}``,
 ``s{i}_support_{J,b}``, ``s{i}_law{j}_{J,a}``.
 """
