@@ -199,20 +199,67 @@ def parse_behavior(
             raise ctx.error((key,), f"unknown section; expected one of {', '.join(sorted(_TOP))}")
     frame_set = None if frames is None else set(frames)
     joint_set = None if joints is None else set(joints)
+    head = _head(ctx, data, path)
+    contact_frames = _contacts(ctx, data, frame_set)
+    contact_set: set[str] | None
+    if contact_frames:
+        contact_set = set(contact_frames)
+    else:
+        contact_set = None if contacts is None else set(contacts)
+    inputs = {iname: _input(ctx, iname, itab)
+              for iname, itab in _table(ctx, data, ("inputs",)).items()}
+    planner = _planner(ctx, data)
+    plan_names = PLANNER_OUTPUTS[planner.type] if planner else frozenset()
+    poses = {pose_name: _pose(ctx, pose_name, ptab, joint_set)
+             for pose_name, ptab in _table(ctx, data, ("poses",)).items()}
+    task_names = set(_table(ctx, data, ("tasks",)))
+    env = _NameCheck(ctx, inputs, task_names, contact_set, plan_names, frame_set, joint_set,
+                     set(poses))
+    tasks = {tname: _task(ctx, env, tname, ttab, frame_set, joint_set, contact_set)
+             for tname, ttab in _table(ctx, data, ("tasks",), required=True).items()}
+    actions: dict[str, ActionPrimitive] = {}
+    for aname, atab in _table(ctx, data, ("actions",)).items():
+        key = ("actions", aname)
+        if not isinstance(atab, dict):
+            raise ctx.error(key, "expected a table with 'tasks' and optional 'levels'")
+        _check_keys(ctx, atab, key, {"tasks", "levels"})
+        actions[aname] = _action(ctx, key, aname, atab, tasks)
+    ptabs = _table(ctx, data, ("phases",), required=True)
+    _check_phase_names(ctx, ptabs, head["initial"], head["safety"])
+    phases = {pname: _phase(ctx, env, pname, ptab, tasks, actions, set(ptabs), contact_set,
+                            head["safety"])
+              for pname, ptab in ptabs.items()}
+    _check_reachable(ctx, phases, head["initial"])
+    return BehaviorSpec(
+        name=head["name"], description=head["description"], initial=head["initial"],
+        phases=phases, tasks=tasks, inputs=inputs, planner=planner, duration=head["duration"],
+        robot=head["robot"], ramp_time=head["ramp_time"], unload_time=head["unload_time"],
+        path=path, contact_frames=contact_frames, poses=poses, inputs_file=head["inputs_file"],
+        backend=head["backend"], max_joint_acceleration=head["max_joint_acceleration"],
+    )
 
+
+# -- sections --------------------------------------------------------------------------------
+
+
+def _head(ctx: _Ctx, data: Mapping[str, Any], path: Path | None) -> dict[str, Any]:
+    """Read the ``[behavior]`` table (the inputs file resolved, the backend checked)."""
     head = _table(ctx, data, ("behavior",), required=True)
     _check_keys(ctx, head, ("behavior",), {
         "name", "description", "initial", "duration", "robot", "ramp_time", "unload_time",
         "safety", "inputs_file", "backend", "max_joint_acceleration",
     })
-    name = _get(ctx, head, ("behavior", "name"), str, default=path.stem if path else "behavior")
-    description = _get(ctx, head, ("behavior", "description"), str, default="")
-    initial = _get(ctx, head, ("behavior", "initial"), str, required=True)
-    duration = _positive(ctx, head, ("behavior", "duration"), 5.0)
-    robot = _get(ctx, head, ("behavior", "robot"), str, default="paper-humanoid")
-    ramp_time = _positive(ctx, head, ("behavior", "ramp_time"), 0.2, allow_zero=True)
-    unload_time = _positive(ctx, head, ("behavior", "unload_time"), 0.1, allow_zero=True)
-    default_safety = _get(ctx, head, ("behavior", "safety"), str, default=None)
+    out: dict[str, Any] = {
+        "name": _get(ctx, head, ("behavior", "name"), str,
+                     default=path.stem if path else "behavior"),
+        "description": _get(ctx, head, ("behavior", "description"), str, default=""),
+        "initial": _get(ctx, head, ("behavior", "initial"), str, required=True),
+        "duration": _positive(ctx, head, ("behavior", "duration"), 5.0),
+        "robot": _get(ctx, head, ("behavior", "robot"), str, default="paper-humanoid"),
+        "ramp_time": _positive(ctx, head, ("behavior", "ramp_time"), 0.2, allow_zero=True),
+        "unload_time": _positive(ctx, head, ("behavior", "unload_time"), 0.1, allow_zero=True),
+        "safety": _get(ctx, head, ("behavior", "safety"), str, default=None),
+    }
     inputs_file = _get(ctx, head, ("behavior", "inputs_file"), str, default=None)
     backend = _get(ctx, head, ("behavior", "backend"), str, default=None)
     max_qdd = None
@@ -232,104 +279,91 @@ def parse_behavior(
         if not inputs_path.is_file():
             raise ctx.error(("behavior", "inputs_file"), f"no such file {str(inputs_path)!r}; "
                             "expected a JSON Lines file of timed inputs")
+    out.update(inputs_file=inputs_path, backend=backend, max_joint_acceleration=max_qdd)
+    return out
 
-    # contacts ----------------------------------------------------------------------------
+
+def _contacts(ctx: _Ctx, data: Mapping[str, Any], frame_set: set[str] | None
+              ) -> dict[str, str]:
+    """Read the ``[contacts]`` table: contact name -> frame."""
     contact_frames: dict[str, str] = {}
     for cname, cframe in _table(ctx, data, ("contacts",)).items():
         if not isinstance(cframe, str):
             raise ctx.error(("contacts", cname), "expected a frame name (string)")
         _check_frame(ctx, ("contacts", cname), cframe, frame_set)
         contact_frames[cname] = cframe
-    contact_set: set[str] | None
-    if contact_frames:
-        contact_set = set(contact_frames)
+    return contact_frames
+
+
+def _input(ctx: _Ctx, iname: str, itab: Any) -> InputSpec:
+    """Read one ``[inputs.NAME]`` table."""
+    key = ("inputs", iname)
+    if not isinstance(itab, dict):
+        raise ctx.error(key, "expected a table with shape, default, interpolate")
+    _check_keys(ctx, itab, key, {"shape", "default", "interpolate", "description"})
+    default = itab.get("default")
+    shape_raw = itab.get("shape")
+    if default is not None:
+        try:
+            default_arr = np.array(default, dtype=float)
+        except (TypeError, ValueError):
+            raise ctx.error((*key, "default"),
+                            "expected a number or a list of numbers") from None
+        if not np.isfinite(default_arr).all():
+            raise ctx.error((*key, "default"), "expected finite numbers")
     else:
-        contact_set = None if contacts is None else set(contacts)
+        default_arr = None
+    if shape_raw is None:
+        if default_arr is None:
+            raise ctx.error(key, "expected 'shape' or 'default'")
+        shape = tuple(default_arr.shape)
+    else:
+        if not (isinstance(shape_raw, list) and all(isinstance(s, int) and s > 0
+                                                    for s in shape_raw)):
+            raise ctx.error((*key, "shape"), "expected a list of positive integers, e.g. [3]")
+        shape = tuple(shape_raw)
+        if default_arr is not None and default_arr.shape != shape:
+            raise ctx.error((*key, "default"),
+                            f"expected shape {list(shape)}, got {list(default_arr.shape)}")
+    return InputSpec(
+        iname, shape, default_arr,
+        bool(_get(ctx, itab, (*key, "interpolate"), bool, default=False)),
+        _get(ctx, itab, (*key, "description"), str, default=""),
+    )
 
-    # inputs ------------------------------------------------------------------------------
-    inputs: dict[str, InputSpec] = {}
-    for iname, itab in _table(ctx, data, ("inputs",)).items():
-        key = ("inputs", iname)
-        if not isinstance(itab, dict):
-            raise ctx.error(key, "expected a table with shape, default, interpolate")
-        _check_keys(ctx, itab, key, {"shape", "default", "interpolate", "description"})
-        default = itab.get("default")
-        shape_raw = itab.get("shape")
-        if default is not None:
-            try:
-                default_arr = np.array(default, dtype=float)
-            except (TypeError, ValueError):
-                raise ctx.error((*key, "default"),
-                                "expected a number or a list of numbers") from None
-            if not np.isfinite(default_arr).all():
-                raise ctx.error((*key, "default"), "expected finite numbers")
-        else:
-            default_arr = None
-        if shape_raw is None:
-            if default_arr is None:
-                raise ctx.error(key, "expected 'shape' or 'default'")
-            shape = tuple(default_arr.shape)
-        else:
-            if not (isinstance(shape_raw, list) and all(isinstance(s, int) and s > 0
-                                                        for s in shape_raw)):
-                raise ctx.error((*key, "shape"), "expected a list of positive integers, e.g. [3]")
-            shape = tuple(shape_raw)
-            if default_arr is not None and default_arr.shape != shape:
-                raise ctx.error((*key, "default"),
-                                f"expected shape {list(shape)}, got {list(default_arr.shape)}")
-        inputs[iname] = InputSpec(
-            iname, shape, default_arr,
-            bool(_get(ctx, itab, (*key, "interpolate"), bool, default=False)),
-            _get(ctx, itab, (*key, "description"), str, default=""),
-        )
 
-    # planner -----------------------------------------------------------------------------
-    planner: PlannerSpec | None = None
-    if "planner" in data:
-        ptab = _table(ctx, data, ("planner",))
-        ptype = _get(ctx, ptab, ("planner", "type"), str, required=True)
-        if ptype not in PLANNER_OUTPUTS:
-            raise ctx.error(("planner", "type"),
-                            f"unknown planner {ptype!r}; expected one of "
-                            f"{', '.join(sorted(PLANNER_OUTPUTS))}")
-        planner = PlannerSpec(ptype, {k: v for k, v in ptab.items() if k != "type"})
-    plan_names = PLANNER_OUTPUTS[planner.type] if planner else frozenset()
+def _planner(ctx: _Ctx, data: Mapping[str, Any]) -> PlannerSpec | None:
+    """Read the ``[planner]`` table (``None``: no planner)."""
+    if "planner" not in data:
+        return None
+    ptab = _table(ctx, data, ("planner",))
+    ptype = _get(ctx, ptab, ("planner", "type"), str, required=True)
+    if ptype not in PLANNER_OUTPUTS:
+        raise ctx.error(("planner", "type"),
+                        f"unknown planner {ptype!r}; expected one of "
+                        f"{', '.join(sorted(PLANNER_OUTPUTS))}")
+    return PlannerSpec(ptype, {k: v for k, v in ptab.items() if k != "type"})
 
-    # poses -------------------------------------------------------------------------------
-    poses: dict[str, dict[str, float]] = {}
-    for pose_name, ptab in _table(ctx, data, ("poses",)).items():
-        key = ("poses", pose_name)
-        if not isinstance(ptab, dict) or not ptab:
-            raise ctx.error(key, "expected a table of joint = position [rad]")
-        for joint, value in ptab.items():
-            if joint_set is not None and joint not in joint_set:
-                raise ctx.error((*key, joint), f"unknown joint {joint!r}; expected one of "
-                                f"{', '.join(sorted(joint_set))}")
-            if isinstance(value, bool) or not isinstance(value, (int, float)) \
-                    or not np.isfinite(value):
-                raise ctx.error((*key, joint), f"expected a joint position [rad], got {value!r}")
-        poses[pose_name] = {j: float(v) for j, v in ptab.items()}
 
-    task_names = set(_table(ctx, data, ("tasks",)))
-    env = _NameCheck(ctx, inputs, task_names, contact_set, plan_names, frame_set, joint_set,
-                     set(poses))
+def _pose(ctx: _Ctx, pose_name: str, ptab: Any, joint_set: set[str] | None
+          ) -> dict[str, float]:
+    """Read one ``[poses.NAME]`` table: joint -> position [rad]."""
+    key = ("poses", pose_name)
+    if not isinstance(ptab, dict) or not ptab:
+        raise ctx.error(key, "expected a table of joint = position [rad]")
+    for joint, value in ptab.items():
+        if joint_set is not None and joint not in joint_set:
+            raise ctx.error((*key, joint), f"unknown joint {joint!r}; expected one of "
+                            f"{', '.join(sorted(joint_set))}")
+        if isinstance(value, bool) or not isinstance(value, (int, float)) \
+                or not np.isfinite(value):
+            raise ctx.error((*key, joint), f"expected a joint position [rad], got {value!r}")
+    return {j: float(v) for j, v in ptab.items()}
 
-    # tasks -------------------------------------------------------------------------------
-    tasks: dict[str, TaskSpec] = {}
-    for tname, ttab in _table(ctx, data, ("tasks",), required=True).items():
-        tasks[tname] = _task(ctx, env, tname, ttab, frame_set, joint_set, contact_set)
 
-    # actions -----------------------------------------------------------------------------
-    actions: dict[str, ActionPrimitive] = {}
-    for aname, atab in _table(ctx, data, ("actions",)).items():
-        key = ("actions", aname)
-        if not isinstance(atab, dict):
-            raise ctx.error(key, "expected a table with 'tasks' and optional 'levels'")
-        _check_keys(ctx, atab, key, {"tasks", "levels"})
-        actions[aname] = _action(ctx, key, aname, atab, tasks)
-
-    # phases ------------------------------------------------------------------------------
-    ptabs = _table(ctx, data, ("phases",), required=True)
+def _check_phase_names(ctx: _Ctx, ptabs: Mapping[str, Any], initial: str,
+                       default_safety: str | None) -> None:
+    """At least one phase; the initial and the default safety phase are phases."""
     if not ptabs:
         raise ctx.error(("phases",), "expected at least one phase")
     phase_names = set(ptabs)
@@ -341,12 +375,10 @@ def parse_behavior(
         raise ctx.error(("behavior", "safety"),
                         f"safety phase {default_safety!r} is not a phase; phases: "
                         f"{', '.join(sorted(phase_names))}")
-    phases: dict[str, PhaseSpec] = {}
-    for pname, ptab in ptabs.items():
-        phases[pname] = _phase(ctx, env, pname, ptab, tasks, actions, phase_names, contact_set,
-                               default_safety)
 
-    # reachability --------------------------------------------------------------------------
+
+def _check_reachable(ctx: _Ctx, phases: Mapping[str, PhaseSpec], initial: str) -> None:
+    """Every phase is reached from the initial one (by transitions or safety)."""
     seen, todo = {initial}, [initial]
     while todo:
         p = phases[todo.pop()]
@@ -359,13 +391,6 @@ def parse_behavior(
             raise ctx.error(("phases", pname),
                             f"phase {pname!r} cannot be reached from the initial phase "
                             f"{initial!r}; expected a transition to it")
-
-    return BehaviorSpec(
-        name=name, description=description, initial=initial, phases=phases, tasks=tasks,
-        inputs=inputs, planner=planner, duration=duration, robot=robot, ramp_time=ramp_time,
-        unload_time=unload_time, path=path, contact_frames=contact_frames, poses=poses,
-        inputs_file=inputs_path, backend=backend, max_joint_acceleration=max_qdd,
-    )
 
 
 # -- helpers ---------------------------------------------------------------------------------
