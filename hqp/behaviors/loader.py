@@ -580,6 +580,67 @@ def _action(ctx: _Ctx, key: tuple[str | int, ...], name: str, table: Mapping[str
     return ActionPrimitive(name, tuple(out))
 
 
+def _phase_contacts(ctx: _Ctx, key: tuple[str, ...], ptab: Mapping[str, Any],
+                    contacts: set[str] | None) -> tuple[str, ...]:
+    """Read a phase's supporting contacts (``contacts = [...]``)."""
+    cl = _get(ctx, ptab, (*key, "contacts"), list, default=None)
+    if cl is None:
+        if contacts is None:
+            raise ctx.error((*key, "contacts"),
+                            "missing key: list the supporting contacts (e.g. "
+                            "[\"left_foot\", \"right_foot\"], or [] for a flight phase)")
+        return tuple(sorted(contacts))
+    for i, c in enumerate(cl):
+        if not isinstance(c, str) or (contacts is not None and c not in contacts):
+            raise ctx.error((*key, "contacts", i), f"unknown contact {c!r}; expected one of "
+                            f"{', '.join(sorted(contacts or []))}")
+    return tuple(cl)
+
+
+def _phase_goals(ctx: _Ctx, env: _NameCheck, key: tuple[str, ...], ptab: Mapping[str, Any],
+                 tasks: Mapping[str, TaskSpec], action: ActionPrimitive
+                 ) -> dict[str, dict[str, Expression]]:
+    """Read a phase's ``goals = {task = expr or {goal = expr}}``."""
+    goals: dict[str, dict[str, Expression]] = {}
+    for tname, gv in _get(ctx, ptab, (*key, "goals"), dict, default={}).items():
+        gkey = (*key, "goals", tname)
+        if tname not in action.task_names:
+            raise ctx.error(gkey, f"task {tname!r} is not active in this phase; active: "
+                            f"{', '.join(action.task_names)}")
+        schema = SCHEMAS[tasks[tname].type]
+        if not schema.goals:
+            raise ctx.error(gkey, f"task type {schema.type!r} has no goal")
+        if isinstance(gv, dict):
+            for g, v in gv.items():
+                if g not in schema.goals:
+                    raise ctx.error((*gkey, g), f"unknown goal; expected one of "
+                                    f"{', '.join(schema.goals)}")
+                goals.setdefault(tname, {})[g] = _goal(ctx, env, (*gkey, g), v)
+        else:
+            goals[tname] = {schema.goals[0]: _goal(ctx, env, gkey, gv)}
+    return goals
+
+
+def _transitions(ctx: _Ctx, env: _NameCheck, key: tuple[str, ...], ptab: Mapping[str, Any],
+                 phase_names: set[str]) -> list[Transition]:
+    """Read a phase's ``[[transitions]]`` (to, when)."""
+    transitions = []
+    raw = _get(ctx, ptab, (*key, "transitions"), list, default=[])
+    for i, tr in enumerate(raw):
+        tkey = (*key, "transitions", i)
+        if not isinstance(tr, dict):
+            raise ctx.error(tkey, "expected a table with 'to' and 'when'")
+        _check_keys(ctx, tr, tkey, {"to", "when"})
+        to = _get(ctx, tr, (*tkey, "to"), str, required=True)
+        if to not in phase_names:
+            raise ctx.error((*tkey, "to"), f"transition to a missing phase {to!r}; phases: "
+                            f"{', '.join(sorted(phase_names))}")
+        when = env.expression((*tkey, "when"), _get(ctx, tr, (*tkey, "when"), str, required=True),
+                              goal=False)
+        transitions.append(Transition(to, when))
+    return transitions
+
+
 def _phase(ctx: _Ctx, env: _NameCheck, pname: str, ptab: Any, tasks: Mapping[str, TaskSpec],
            actions: Mapping[str, ActionPrimitive], phase_names: set[str],
            contacts: set[str] | None, default_safety: str | None) -> PhaseSpec:
@@ -601,36 +662,8 @@ def _phase(ctx: _Ctx, env: _NameCheck, pname: str, ptab: Any, tasks: Mapping[str
             raise ctx.error((*key, "levels"), "put level overrides in the action")
     else:
         action = _action(ctx, key, pname, ptab, tasks)
-    cl = _get(ctx, ptab, (*key, "contacts"), list, default=None)
-    if cl is None:
-        if contacts is None:
-            raise ctx.error((*key, "contacts"),
-                            "missing key: list the supporting contacts (e.g. "
-                            "[\"left_foot\", \"right_foot\"], or [] for a flight phase)")
-        phase_contacts = tuple(sorted(contacts))
-    else:
-        for i, c in enumerate(cl):
-            if not isinstance(c, str) or (contacts is not None and c not in contacts):
-                raise ctx.error((*key, "contacts", i), f"unknown contact {c!r}; expected one of "
-                                f"{', '.join(sorted(contacts or []))}")
-        phase_contacts = tuple(cl)
-    goals: dict[str, dict[str, Expression]] = {}
-    for tname, gv in _get(ctx, ptab, (*key, "goals"), dict, default={}).items():
-        gkey = (*key, "goals", tname)
-        if tname not in action.task_names:
-            raise ctx.error(gkey, f"task {tname!r} is not active in this phase; active: "
-                            f"{', '.join(action.task_names)}")
-        schema = SCHEMAS[tasks[tname].type]
-        if not schema.goals:
-            raise ctx.error(gkey, f"task type {schema.type!r} has no goal")
-        if isinstance(gv, dict):
-            for g, v in gv.items():
-                if g not in schema.goals:
-                    raise ctx.error((*gkey, g), f"unknown goal; expected one of "
-                                    f"{', '.join(schema.goals)}")
-                goals.setdefault(tname, {})[g] = _goal(ctx, env, (*gkey, g), v)
-        else:
-            goals[tname] = {schema.goals[0]: _goal(ctx, env, gkey, gv)}
+    phase_contacts = _phase_contacts(ctx, key, ptab, contacts)
+    goals = _phase_goals(ctx, env, key, ptab, tasks, action)
     final = _get(ctx, ptab, (*key, "final"), bool, default=False)
     safety = _get(ctx, ptab, (*key, "safety"), str, default=default_safety)
     if safety == pname:
@@ -659,20 +692,7 @@ def _phase(ctx: _Ctx, env: _NameCheck, pname: str, ptab: Any, tasks: Mapping[str
     if joint_braking not in ("contacts", "airborne"):
         raise ctx.error((*key, "joint_braking"), f"expected \"contacts\" or \"airborne\", "
                         f"got {joint_braking!r}")
-    transitions = []
-    raw = _get(ctx, ptab, (*key, "transitions"), list, default=[])
-    for i, tr in enumerate(raw):
-        tkey = (*key, "transitions", i)
-        if not isinstance(tr, dict):
-            raise ctx.error(tkey, "expected a table with 'to' and 'when'")
-        _check_keys(ctx, tr, tkey, {"to", "when"})
-        to = _get(ctx, tr, (*tkey, "to"), str, required=True)
-        if to not in phase_names:
-            raise ctx.error((*tkey, "to"), f"transition to a missing phase {to!r}; phases: "
-                            f"{', '.join(sorted(phase_names))}")
-        when = env.expression((*tkey, "when"), _get(ctx, tr, (*tkey, "when"), str, required=True),
-                              goal=False)
-        transitions.append(Transition(to, when))
+    transitions = _transitions(ctx, env, key, ptab, phase_names)
     if not final and not transitions:
         raise ctx.error(key, "phase has no exit: expected [[phases."
                         f"{pname}.transitions]] (to, when) or final = true")
