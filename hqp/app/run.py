@@ -27,7 +27,7 @@ from hqp.app.console import stdout_to_stderr
 from hqp.behaviors.behavior import Behavior
 from hqp.behaviors.setup import prepare
 from hqp.behaviors.spec import BehaviorSpec
-from hqp.nullspace import CONTROLLER_NAMES
+from hqp.control.presets import CONTROLLER_NAMES
 from hqp.plots import Line, Panel, plot_panels
 from hqp.sim.loop import Step, closed_loop
 from hqp.sim.render import Video
