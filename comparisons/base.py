@@ -16,11 +16,13 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from comparisons.metrics import Trace, run_metrics
+from hqp.control.presets import CONTROLLER_NAMES
 from hqp.errors import InvalidInput, UnknownName
 from hqp.plots import Panel
 
-CONTROLLERS: tuple[str, ...] = ("hqp", "nullspace", "placo")
-"""Every controller a scenario may run (``placo``: PlaCo's ``DynamicsSolver``)."""
+CONTROLLERS: tuple[str, ...] = (*CONTROLLER_NAMES, "placo")
+"""Every controller a scenario may run: hqp's registry (:data:`hqp.control.presets.CONTROLLERS`)
+and ``placo`` (PlaCo's ``DynamicsSolver``)."""
 
 Progress = Callable[[str], None]
 """A callback that receives progress messages (the CLI prints them on stderr)."""

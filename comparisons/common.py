@@ -3,12 +3,12 @@
 A scenario describes its hierarchy as a list of levels of named tasks (after
 the constraint levels). :func:`make_controller` turns it into a controller:
 
-- ``hqp``: :class:`hqp.controller.WholeBodyController`; constraint sub-levels
+- ``hqp``: :class:`hqp.control.WholeBodyController`; constraint sub-levels
   first (physics: floating-base dynamics and the feet; contact and actuation
   limits: friction, centre of pressure, torque limits; joint limits: the viable
   bounds of :class:`hqp.tasks.joint_limits.JointLimits`; collision), then the
   scenario's levels.
-- ``nullspace``: :class:`hqp.nullspace.NullSpaceController`; the law has no
+- ``nullspace``: :class:`hqp.control.NullSpaceController`; the law has no
   inequalities, so joint limits are the papers' activation zones
   (:class:`hqp.tasks.joint_limit_zone.JointLimitZone`) on the top task level,
   and torque and friction limits are not enforced.
@@ -22,11 +22,12 @@ from typing import Any
 
 import numpy as np
 
-from hqp.errors import UnknownName
+from hqp.control import presets
 from hqp.model import RobotModel
 from hqp.robots import Robot
 from hqp.stack import Stack
 from hqp.tasks.base import Category, Task
+from hqp.tasks.joint_limits import JointLimits
 
 DT = 1e-3
 """Control and simulation period [s]."""
@@ -82,18 +83,9 @@ def feet_contacts(robot: Robot, model: RobotModel) -> list[Task]:
     """Return the two sole contacts, as the standing controllers declare them.
 
     Friction ``0.8 x`` the sole's, centre of pressure within ``0.9 x`` the sole
-    (:func:`hqp.controller.standing_stack`).
+    (:func:`hqp.control.presets.feet_contacts`).
     """
-    from hqp.layout import ContactType
-    from hqp.tasks.contact import Contact
-
-    out: list[Task] = []
-    for foot in robot.feet:
-        c = robot.contact(foot)
-        out.append(Contact(foot, c.frame, ContactType.SURFACE, mu=0.8 * c.friction,
-                           half_length=0.9 * c.half_length, half_width=0.9 * c.half_width,
-                           model=model))
-    return out
+    return presets.feet_contacts(robot, model)
 
 
 def braking_acceleration(robot: Robot, model: RobotModel) -> np.ndarray:
@@ -110,19 +102,19 @@ def braking_acceleration(robot: Robot, model: RobotModel) -> np.ndarray:
 
 
 def build_stack(robot: Robot, model: RobotModel, hierarchy: Hierarchy) -> Stack:
-    """Constraint sub-levels, then the scenario's levels (module docstring)."""
-    from hqp.tasks.dynamics import FloatingBaseDynamics
-    from hqp.tasks.joint_limits import JointLimits
-    from hqp.tasks.torque_limits import TorqueLimits
+    """Constraint sub-levels, then the scenario's levels (module docstring).
 
+    The constraint levels are :func:`hqp.control.presets.constraint_stack`'s, with the
+    scenarios' viable joint limits (:func:`braking_acceleration`, :data:`JOINT_VELOCITY_SCALE`)
+    and the stack's default ramp time; the contacts are declared by :func:`make_controller`.
+    """
     names = [name for name, _ in hierarchy.levels]
-    stack = Stack([Category.PHYSICS, Category.CONTACT_LIMITS, Category.JOINT_LIMITS,
-                   Category.COLLISION, *names])
-    stack.add(FloatingBaseDynamics(), Category.PHYSICS)
-    stack.add(TorqueLimits(), Category.CONTACT_LIMITS)
-    stack.add(JointLimits(qdd_max=braking_acceleration(robot, model),
-                          velocity_scale=JOINT_VELOCITY_SCALE),
-              Category.JOINT_LIMITS)
+    limits = JointLimits(qdd_max=braking_acceleration(robot, model),
+                         velocity_scale=JOINT_VELOCITY_SCALE)
+    stack, _ = presets.constraint_stack(
+        robot, model, levels=[Category.PHYSICS, Category.CONTACT_LIMITS, Category.JOINT_LIMITS,
+                              Category.COLLISION, *names],
+        ramp_time=Stack().ramp_time, joint_limits=limits)
     for task in hierarchy.collision:
         stack.add(task, Category.COLLISION)
     for name, tasks in hierarchy.levels:
@@ -144,7 +136,7 @@ def make_controller(
 
     Both controllers get the same stack (:func:`build_stack`); for the
     null-space law the viable joint limits are replaced by the papers'
-    activation zones (:func:`hqp.nullspace.papers_joint_limits`), and its
+    activation zones (:func:`hqp.control.presets.papers_joint_limits`), and its
     inequality rows (friction, torque limits, obstacle distances) are
     reported, not enforced.
 
@@ -160,20 +152,14 @@ def make_controller(
         UnknownName: Another kind.
 
     """
-    if kind == "hqp":
-        from hqp.controller import WholeBodyController
-
-        stack = build_stack(robot, model, hierarchy)
-        return WholeBodyController(model, feet_contacts(robot, model), stack, dt=DT,
-                                   backend=BACKEND, diagnostics="residuals")
+    presets.controller_kind(kind)
+    stack = build_stack(robot, model, hierarchy)
+    options: dict[str, Any] = {"backend": BACKEND}
     if kind == "nullspace":
-        from hqp.nullspace import NullSpaceController, papers_joint_limits
-
-        stack = build_stack(robot, model, hierarchy)
-        papers_joint_limits(stack, zone=zone, gains=zone_gains)
-        return NullSpaceController(model, feet_contacts(robot, model), stack, dt=DT,
-                                   diagnostics="residuals")
-    raise UnknownName("controller", kind, ("hqp", "nullspace"))
+        presets.papers_joint_limits(stack, zone=zone, gains=zone_gains)
+        options = {}
+    return presets.make_controller(kind, model, feet_contacts(robot, model), stack, dt=DT,
+                                   diagnostics="residuals", **options)
 
 
 def kinematic_rollout(

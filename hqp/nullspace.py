@@ -7,24 +7,8 @@ polygon, centre of pressure: ``zones.py``; ``NullSpaceController`` (the servo wi
 :mod:`hqp.control.presets`. Derivation and measured results: docs/nullspace.md.
 """
 
-from hqp.control.nullspace import (
-    EIG_TOL,
-    PHI_TOL,
-    SUPPORT_ZONE,
-    TORQUE_ZONE,
-    LawLevel,
-    LawProblem,
-    LawSolution,
-    NullSpaceController,
-    NullSpaceResolver,
-    center_of_pressure,
-    floating_base_metric,
-    law_problem,
-    prioritized_torques,
-    project_to_polygon,
-    support_moment_rows,
-    support_polygon,
-)
+from hqp.control import nullspace as _nullspace
+from hqp.control.nullspace import *  # noqa: F403
 from hqp.control.presets import (
     CONTROLLER_NAMES,
     make_standing_controller,
@@ -32,25 +16,5 @@ from hqp.control.presets import (
     standing_nullspace_controller,
 )
 
-__all__ = [
-    "CONTROLLER_NAMES",
-    "EIG_TOL",
-    "PHI_TOL",
-    "SUPPORT_ZONE",
-    "TORQUE_ZONE",
-    "LawLevel",
-    "LawProblem",
-    "LawSolution",
-    "NullSpaceController",
-    "NullSpaceResolver",
-    "center_of_pressure",
-    "floating_base_metric",
-    "law_problem",
-    "make_standing_controller",
-    "papers_joint_limits",
-    "prioritized_torques",
-    "project_to_polygon",
-    "standing_nullspace_controller",
-    "support_moment_rows",
-    "support_polygon",
-]
+__all__ = [*_nullspace.__all__, "CONTROLLER_NAMES", "make_standing_controller",
+           "papers_joint_limits", "standing_nullspace_controller"]

@@ -58,6 +58,7 @@ from hqp.errors import HQPError, InvalidInput, InvalidLevel, UnknownName
 from hqp.layout import ContactType
 from hqp.solver import Level
 from hqp.tasks.base import Category, Rows, Task
+from hqp.tasks.contact import ContactLimits
 from hqp.tasks.reference import (  # min_jerk: also importable as hqp.stack.min_jerk
     MIN_JERK_PEAK_ACCELERATION,
     MIN_JERK_PEAK_VELOCITY,
@@ -404,8 +405,6 @@ class Stack:
             active: Whether the contact starts made.
 
         """
-        from hqp.tasks.contact import ContactLimits
-
         tasks: list[tuple[Task, int | str | Category | None]] = [(contact, Category.PHYSICS)]
         if limits:
             tasks.append((ContactLimits(contact), Category.CONTACT_LIMITS))

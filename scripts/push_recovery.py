@@ -20,13 +20,15 @@ import math
 import sys
 import time
 
+from hqp.control.presets import CONTROLLER_NAMES
+
 
 def survives(robot_name: str, force: float, angle_deg: float, args: argparse.Namespace) -> dict:
     """One run: push of ``force`` [N] at ``angle_deg`` (0: +x forward, 90: +y left)."""
     import numpy as np
 
     import hqp.robots as robots
-    from hqp.nullspace import make_standing_controller
+    from hqp.control.presets import make_standing_controller
     from hqp.sim import Push, simulate
 
     robot = robots.load(robot_name)
@@ -67,7 +69,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--max-force", type=float, default=800.0, help="upper end of the search [N]")
     p.add_argument("--tolerance", type=float, default=10.0, help="bisection resolution [N]")
     p.add_argument("--backend", default="proxsuite", help="QP backend of the HQP controller")
-    p.add_argument("--controller", default="hqp", choices=("hqp", "nullspace"),
+    p.add_argument("--controller", default="hqp", choices=CONTROLLER_NAMES,
                    help="standing controller: HQP or the papers' null-space law")
     p.add_argument("--law-zones", type=float, nargs=2, metavar=("SUPPORT", "TORQUE"),
                    help="null-space law only: support and torque activation zones "

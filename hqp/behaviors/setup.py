@@ -21,12 +21,8 @@ from hqp.behaviors.inputs import InputStream
 from hqp.behaviors.loader import load_behavior
 from hqp.behaviors.planners import PlacoWalkPlanner
 from hqp.behaviors.spec import BehaviorSpec, InputSpec
+from hqp.control.presets import constraint_controller
 from hqp.errors import BehaviorFileError, UnknownName
-from hqp.nullspace import CONTROLLER_NAMES, make_standing_controller
-from hqp.tasks.centroidal import CentroidalMomentumTask
-from hqp.tasks.com import CoMTask
-from hqp.tasks.orientation import OrientationTask
-from hqp.tasks.posture import PostureTask
 
 
 def build_controller(
@@ -39,11 +35,10 @@ def build_controller(
 ) -> Any:
     """Build a whole-body controller holding only the constraint levels of docs/architecture.md.
 
-    The standing controllers (:func:`hqp.controller.standing_controller`,
-    :func:`hqp.nullspace.standing_nullspace_controller`: physics
-    with both soles as contacts, friction / centre-of-pressure / torque limits, viable joint
-    limits for HQP or the papers' activation zones for the null-space law), without their
-    standing tasks: the behavior writes its own task sets.
+    :func:`hqp.control.presets.constraint_controller`: the constraint levels of the standing
+    controllers (physics with both soles as contacts, friction / centre-of-pressure / torque
+    limits, viable joint limits for HQP or the papers' activation zones for the null-space
+    law), without their standing tasks: the behavior writes its own task sets.
 
     Args:
         robot: The bundled robot.
@@ -57,21 +52,8 @@ def build_controller(
         UnknownName: Unknown controller.
 
     """
-    if controller not in CONTROLLER_NAMES:
-        raise UnknownName("controller", controller, CONTROLLER_NAMES)
-    kwargs: dict[str, Any] = {}
-    if controller == "hqp" and backend is not None:
-        kwargs["backend"] = backend
-    if controller == "hqp" and max_joint_acceleration is not None:
-        kwargs["max_joint_acceleration"] = max_joint_acceleration
-    ctrl = make_standing_controller(controller, robot, diagnostics=diagnostics, **kwargs)
-    for task in list(ctrl.stack.tasks):
-        # the standing tasks (the angular-momentum damping of the standing balance level
-        # included: left in, it sat strictly above every task of a behavior's lower levels)
-        if isinstance(task, (CoMTask, OrientationTask, PostureTask, CentroidalMomentumTask)):
-            ctrl.stack.remove(task.name)
-    ctrl.stack.pop_events()
-    return ctrl
+    return constraint_controller(controller, robot, diagnostics=diagnostics, backend=backend,
+                                 max_joint_acceleration=max_joint_acceleration)
 
 
 def _contacts_of(spec: BehaviorSpec, robot: Any) -> dict[str, str]:

@@ -184,7 +184,7 @@ def profile(robot_name: str, steps: int = 200, backend: str = "proxsuite",
 
 
 BREAKDOWN = (
-    ("step", "controller.py", "step"),
+    ("step", "servo.py", "step"),
     ("model update", "model.py", "update"),
     ("rows (stack.build)", "stack.py", "build"),
     ("solve", "hierarchy.py", "solve"),
@@ -192,8 +192,8 @@ BREAKDOWN = (
     ("  validation (check_level)", "level.py", "check_level"),
     ("  level reports", "hierarchy.py", "_report"),
     ("  sigma_min", "hierarchy.py", "_sigma_level"),
-    ("torques", "controller.py", "torques"),
-    ("feasibility report", "controller.py", "_statuses"),
+    ("torques", "dynamics.py", "joint_torques"),
+    ("feasibility report", "diagnostics.py", "hqp_statuses"),
 )
 """Rows of the CPU breakdown: (label, file name, function name) of a profiled function."""
 

@@ -72,7 +72,7 @@ def feet_contacts(robot: Robot, model: RobotModel, *, friction: float | None = N
 
 def viable_joint_limits(robot: Robot, model: RobotModel,
                         max_joint_acceleration: float = 50.0) -> JointLimits:
-    """The viable joint limits of the standing controllers (model updated at the standing pose).
+    """Return the viable joint limits of the standing controllers (model at the standing pose).
 
     The bound on ``|qdd|`` is the fixed-base torque estimate clipped to
     ``[5, max_joint_acceleration]`` rad/s^2; the braking assumption is the smaller of half of
@@ -146,7 +146,7 @@ def constraint_stack(
     zone: float = 0.1,
     zone_gains: tuple[float, float] = (400.0, 40.0),
 ) -> tuple[Stack, list[Task]]:
-    """The constraint levels of a humanoid on both feet, and its sole contacts.
+    """Build the constraint levels of a humanoid on both feet, and its sole contacts.
 
     Physics (floating-base dynamics; the contacts, declared by the controller); contact and
     actuation limits (torque limits here, friction and centre of pressure with the contacts);
@@ -497,7 +497,7 @@ def constraint_controller(
     backend: str | None = None,
     max_joint_acceleration: float | None = None,
 ) -> Controller:
-    """A controller holding only the constraint levels of a humanoid on both feet.
+    """Build a controller holding only the constraint levels of a humanoid on both feet.
 
     What a behavior starts from: the stack of :func:`standing_stack` (its ``ramp_time``
     included) without the standing tasks; the behavior writes its own task sets. Joint limits

@@ -49,7 +49,7 @@ class Resolver(Protocol):
         """Forget warm starts (the layout changed)."""
 
     def twin(self) -> Resolver:
-        """A resolver of the same kind with its own warm-start state (the blend's hierarchy)."""
+        """Return a resolver of the same kind with its own warm starts (for a blend)."""
 
 
 def finite_level(level: Level) -> bool:
@@ -90,7 +90,7 @@ class HQPResolver:
         self._fallbacks: list[HierarchicalSolver | None] = []  # shared with twins
 
     def twin(self) -> HQPResolver:
-        """Same backend and tie-break, its own solver; the fallback solver is shared."""
+        """Return a resolver of the same backend and tie-break with its own solver."""
         other = copy.copy(self)
         other.solver = HierarchicalSolver(self.backend, self.algorithm)
         other.last_solution = None

@@ -23,6 +23,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from hqp.errors import InvalidInput, check_array
+from hqp.geometry import monotone_chain
 from hqp.model import RobotState
 from hqp.sim import convert
 
@@ -306,24 +307,7 @@ class Simulator:
 
 def _hull(points: np.ndarray) -> np.ndarray:
     """Convex hull of 2D points ``(k, 2)``, counter-clockwise (Andrew's monotone chain)."""
-    pts = sorted(map(tuple, np.round(points, 12)))
-    if len(pts) <= 2:
-        return np.array(pts)
-
-    def cross(o: tuple, a: tuple, b: tuple) -> float:
-        return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
-
-    lower: list[tuple] = []
-    for p in pts:
-        while len(lower) >= 2 and cross(lower[-2], lower[-1], p) <= 0:
-            lower.pop()
-        lower.append(p)
-    upper: list[tuple] = []
-    for p in reversed(pts):
-        while len(upper) >= 2 and cross(upper[-2], upper[-1], p) <= 0:
-            upper.pop()
-        upper.append(p)
-    return np.array(lower[:-1] + upper[:-1])
+    return monotone_chain(sorted(map(tuple, np.round(points, 12))))
 
 
 def inside_polygon(point: np.ndarray, vertices: np.ndarray) -> float:

@@ -204,13 +204,68 @@ def prioritized_torques(
 
     """
     t_start = time.perf_counter()
+    M, h, S, checked, names = _checked(M, h, S, levels, names, eig_tol, internal_forces, method)
+    d = _support_dynamics(M, h, S, support)
+    if method == "literal":
+        tau, records, null_spaces = _literal(checked, names, d.B, d.Phi, d.Phi_pinv, d.qdd0,
+                                             eig_tol)
+        bases: list[np.ndarray] = []
+    else:
+        y, records, bases = _whitened(checked, names, d.Wh, d.qdd0, eig_tol)
+        tau = d.Tm @ y
+        null_spaces = []
+
+    # Internal forces: torques in null(Phi) change f, not qdd.
+    tau_int = np.zeros(S.shape[0])
+    if internal_forces == "min-norm" and d.Js.shape[0] and d.Z_int.shape[1]:
+        tau_int = _internal_force_torque(d, h, S, tau, support_weights, weight_passes)
+        tau = tau + tau_int
+
+    qdd = d.qdd0 + d.B @ tau
+    if d.Js.shape[0]:
+        f = d.Lambda_s @ (d.bs - d.Js @ d.Minv @ (S.T @ tau - h))
+    else:
+        f = np.zeros(0)
+    levels_out = tuple(
+        LawLevel(name, eig, rank, thr, J @ qdd - a, F, float(np.linalg.norm(a)))
+        for (name, eig, rank, thr, F), (J, a) in zip(records, checked)
+    )
+    return LawSolution(
+        tau=tau,
+        qdd=qdd,
+        f=f,
+        levels=levels_out,
+        tau_internal=tau_int,
+        phi=d.Phi,
+        phi_pinv=d.Phi_pinv,
+        torque_to_qdd=d.B,
+        qdd0=d.qdd0,
+        whiten=d.Wh,
+        bases=tuple(bases),
+        null_spaces=tuple(null_spaces),
+        method=method,
+        timings={"law": time.perf_counter() - t_start},
+    )
+
+
+def _checked(
+    M: np.ndarray,
+    h: np.ndarray,
+    S: np.ndarray | None,
+    levels: Sequence[tuple[np.ndarray, np.ndarray]],
+    names: Sequence[str] | None,
+    eig_tol: float,
+    internal_forces: str,
+    method: str,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[tuple[np.ndarray, np.ndarray]],
+           Sequence[str]]:
+    """Check the law's inputs; return them as float arrays: ``(M, h, S, levels, names)``."""
     M = check_array(M, (None, None), "prioritized_torques: M")
     nv = M.shape[0]
     if M.shape != (nv, nv):
         raise InvalidInput(f"prioritized_torques: M must be square, got {M.shape}")
     h = check_array(h, (nv,), "prioritized_torques: h")
     S = np.eye(nv) if S is None else check_array(S, (None, nv), "prioritized_torques: S")
-    na = S.shape[0]
     if not (np.isfinite(eig_tol) and 0.0 < eig_tol < 1.0):
         raise InvalidInput(f"prioritized_torques: eig_tol must be in (0, 1), got {eig_tol}")
     if internal_forces not in ("none", "min-norm"):
@@ -231,7 +286,34 @@ def prioritized_torques(
         names = [f"level {k}" for k in range(len(checked))]
     elif len(names) != len(checked):
         raise InvalidInput("prioritized_torques: names and levels differ in length")
+    return M, h, S, checked, names
 
+
+@dataclass(frozen=True)
+class _SupportDynamics:
+    """Support-consistent dynamics (Sentis et al. 2010) and the law's whitening.
+
+    ``qdd = B tau + qdd0``; ``Phi = S B`` ``(na, na)``; ``Lambda^-1 = (J Wh Z)(J Wh Z)^T``;
+    ``tau = Tm y`` from whitened coordinates; ``Z_int`` spans ``null(Phi)``.
+    """
+
+    Js: np.ndarray
+    bs: np.ndarray
+    Minv: np.ndarray
+    Lambda_s: np.ndarray
+    B: np.ndarray
+    qdd0: np.ndarray
+    Phi: np.ndarray
+    Phi_pinv: np.ndarray
+    Wh: np.ndarray
+    Tm: np.ndarray
+    Z_int: np.ndarray
+
+
+def _support_dynamics(M: np.ndarray, h: np.ndarray, S: np.ndarray,
+                      support: tuple[np.ndarray, np.ndarray] | None) -> _SupportDynamics:
+    """``N_s = I - Jbar_s J_s``, ``B = M^-1 N_s^T S^T``, ``qdd0``, ``Phi = S B`` and its factors."""
+    nv, na = M.shape[0], S.shape[0]
     try:
         R = sla.cholesky(M, lower=False)  # M = R^T R
     except np.linalg.LinAlgError:
@@ -240,7 +322,6 @@ def prioritized_torques(
     Minv = Rinv @ Rinv.T
     plain = support is None and na == nv and np.array_equal(S, np.eye(nv))
 
-    # Support-consistent dynamics (Sentis et al. 2010).
     if support is not None:
         Js = check_array(support[0], (None, nv), "prioritized_torques: support J_s")
         bs = check_array(support[1], (Js.shape[0],), "prioritized_torques: support b_s")
@@ -272,53 +353,26 @@ def prioritized_torques(
         Tm = Ur / np.sqrt(wr)  # (L^T)^+
         Wh = B @ Tm  # B Phi^+ L
         Z_int = U[:, ~keep]
+    return _SupportDynamics(Js, bs, Minv, Lambda_s, B, qdd0, Phi, Phi_pinv, Wh, Tm, Z_int)
 
-    if method == "literal":
-        tau, records, null_spaces = _literal(checked, names, B, Phi, Phi_pinv, qdd0, eig_tol)
-        bases: list[np.ndarray] = []
-    else:
-        y, records, bases = _whitened(checked, names, Wh, qdd0, eig_tol)
-        tau = Tm @ y
-        null_spaces = []
 
-    # Internal forces: torques in null(Phi) change f, not qdd.
-    tau_int = np.zeros(na)
-    if internal_forces == "min-norm" and Js.shape[0] and Z_int.shape[1]:
-        # f(tau) = Lambda_s (b_s - J_s M^-1 (S^T tau - h)); d f / d tau = -Lambda_s J_s M^-1 S^T
-        Df = -Lambda_s @ (Js @ Minv @ S.T @ Z_int)
-        f_plain = Lambda_s @ (bs - Js @ Minv @ (S.T @ tau - h))
-        y_int = np.linalg.lstsq(Df, -f_plain, rcond=None)[0]
-        for _ in range(weight_passes if support_weights is not None else 0):
-            sw = np.sqrt(np.asarray(support_weights(f_plain + Df @ y_int), dtype=float))
-            y_int = np.linalg.lstsq(sw[:, None] * Df, -sw * f_plain, rcond=None)[0]
-        tau_int = Z_int @ y_int
-        tau = tau + tau_int
-
-    qdd = qdd0 + B @ tau
-    if Js.shape[0]:
-        f = Lambda_s @ (bs - Js @ Minv @ (S.T @ tau - h))
-    else:
-        f = np.zeros(0)
-    levels_out = tuple(
-        LawLevel(name, eig, rank, thr, J @ qdd - a, F, float(np.linalg.norm(a)))
-        for (name, eig, rank, thr, F), (J, a) in zip(records, checked)
-    )
-    return LawSolution(
-        tau=tau,
-        qdd=qdd,
-        f=f,
-        levels=levels_out,
-        tau_internal=tau_int,
-        phi=Phi,
-        phi_pinv=Phi_pinv,
-        torque_to_qdd=B,
-        qdd0=qdd0,
-        whiten=Wh,
-        bases=tuple(bases),
-        null_spaces=tuple(null_spaces),
-        method=method,
-        timings={"law": time.perf_counter() - t_start},
-    )
+def _internal_force_torque(
+    d: _SupportDynamics,
+    h: np.ndarray,
+    S: np.ndarray,
+    tau: np.ndarray,
+    support_weights: Callable[[np.ndarray], np.ndarray] | None,
+    weight_passes: int,
+) -> np.ndarray:
+    """Return the torque in ``null(Phi)`` that gives the least (weighted) support forces."""
+    # f(tau) = Lambda_s (b_s - J_s M^-1 (S^T tau - h)); d f / d tau = -Lambda_s J_s M^-1 S^T
+    Df = -d.Lambda_s @ (d.Js @ d.Minv @ S.T @ d.Z_int)
+    f_plain = d.Lambda_s @ (d.bs - d.Js @ d.Minv @ (S.T @ tau - h))
+    y_int = np.linalg.lstsq(Df, -f_plain, rcond=None)[0]
+    for _ in range(weight_passes if support_weights is not None else 0):
+        sw = np.sqrt(np.asarray(support_weights(f_plain + Df @ y_int), dtype=float))
+        y_int = np.linalg.lstsq(sw[:, None] * Df, -sw * f_plain, rcond=None)[0]
+    return d.Z_int @ y_int
 
 
 def _whitened(

@@ -98,7 +98,7 @@ class NullSpaceResolver:
         self.last_problem: LawProblem | None = None
 
     def twin(self) -> NullSpaceResolver:
-        """A resolver of the same settings (the law keeps no warm start)."""
+        """Return a resolver of the same settings (the law keeps no warm start)."""
         return NullSpaceResolver(eig_tol=self.eig_tol, internal_forces=self.internal_forces,
                                  method=self.method, zones=self.zones)
 

@@ -17,6 +17,7 @@ import numpy as np
 
 from hqp.control.nullspace.law import LawSolution
 from hqp.control.nullspace.multicontact import LawProblem
+from hqp.geometry import monotone_chain
 from hqp.layout import ContactType
 
 if TYPE_CHECKING:
@@ -69,24 +70,7 @@ def support_polygon(
 
 def _convex_hull(points: np.ndarray) -> np.ndarray:
     """Counter-clockwise convex hull ``(k, 2)`` of ``(n, 2)`` points (monotone chain)."""
-    pts = sorted({(float(x), float(y)) for x, y in points})
-    if len(pts) <= 2:
-        return np.array(pts)
-
-    def cross(o: tuple, a: tuple, b: tuple) -> float:
-        return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
-
-    lower: list[tuple] = []
-    for q in pts:
-        while len(lower) >= 2 and cross(lower[-2], lower[-1], q) <= 0.0:
-            lower.pop()
-        lower.append(q)
-    upper: list[tuple] = []
-    for q in reversed(pts):
-        while len(upper) >= 2 and cross(upper[-2], upper[-1], q) <= 0.0:
-            upper.pop()
-        upper.append(q)
-    return np.array(lower[:-1] + upper[:-1])
+    return monotone_chain(sorted({(float(x), float(y)) for x, y in points}))
 
 
 def project_to_polygon(point: np.ndarray, hull: np.ndarray) -> tuple[np.ndarray, bool]:

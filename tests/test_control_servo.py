@@ -1,55 +1,23 @@
+"""The servo (hqp.control.servo): one control step, safe command, ramps and blends."""
+
 import numpy as np
 import pytest
 from _h5_standins import (
-    ComStandIn,
     JointAccelStandIn,
-    JointBoundStandIn,
-    PostureStandIn,
     sample_humanoid,
 )
+from _servo_setup import DT, make
 
 from hqp.controller import (
     Command,
     Feasibility,
-    FeasibilityReport,
-    TaskStatus,
     WholeBodyController,
 )
-from hqp.errors import InvalidInput, SolverFailure, UnknownName
+from hqp.errors import InvalidInput, SolverFailure
 from hqp.model import RobotState
-from hqp.stack import Stack
 from hqp.tasks.base import Category
-from hqp.tasks.contact import Contact
-from hqp.tasks.dynamics import FloatingBaseDynamics
-
-DT = 1e-3
-
 
 BACKENDS = ["proxsuite", "daqp"]
-
-
-def make(extra=(), posture=True, backend="proxsuite", **kwargs):
-    m, q = sample_humanoid()
-    m.update(q, np.zeros(m.nv))
-    st = Stack(**kwargs)
-    st.add(FloatingBaseDynamics())
-    st.add(ComStandIn("com", m.com[:2] + np.array([0.01, 0.0])))
-    if posture:
-        st.add(PostureStandIn("posture", q))
-    for task, level in extra:
-        st.add(task, level)
-    c = WholeBodyController(m, [Contact("right", "right_sole"), Contact("left", "left_sole")], st,
-                            dt=DT, backend=backend)
-    return c, m, q
-
-
-def test_report_lookup():
-    s = TaskStatus("a", 3, Feasibility.CONFLICT, 0.5, 2, 0.1)
-    r = FeasibilityReport(tasks=(s,))
-    assert r["a"] is s and "a" in r and "b" not in r
-    assert not r.feasible and r.conflicts() == [s] and r.singular() == []
-    with pytest.raises(UnknownName, match="valid tasks: a"):
-        r["b"]
 
 
 def test_step_satisfies_equation_of_motion_and_limits():
@@ -72,47 +40,6 @@ def test_step_satisfies_equation_of_motion_and_limits():
     assert cmd.report["posture"].status is Feasibility.CONFLICT
     assert cmd.report["posture"].yields_to == 0  # the feet hold the legs (physics level)
     assert set(cmd.timings) >= {"update", "rows", "solve", "total"}
-
-
-def test_conflicting_task_is_reported_and_leaves_higher_level_unchanged():
-    # Without and with a lower task asking for another centre-of-mass acceleration.
-    c0, m, q = make(posture=False)
-    state = RobotState(q, np.zeros(m.nv))
-    ref = c0.step(state, 0.0)
-    rival = ComStandIn("rival", m.com[:2] + np.array([-0.05, 0.02]))
-    c1, _, _ = make(extra=[(rival, Category.OPERATIONAL)], posture=False)
-    cmd = c1.step(state, 0.0)
-    st = cmd.report["rival"]
-    assert st.status is Feasibility.CONFLICT
-    assert st.yields_to == int(Category.BALANCE)
-    assert st.residual > 1.0
-    np.testing.assert_allclose(cmd.report["com"].residual, ref.report["com"].residual, atol=1e-6)
-    m.update(q, np.zeros(m.nv))
-    np.testing.assert_allclose(m.com_jacobian[:2] @ cmd.qdd, m.com_jacobian[:2] @ ref.qdd,
-                               atol=1e-6)
-
-
-def test_conflict_with_an_inequality_level_names_it():
-    bound = JointBoundStandIn("bound", 10, -1.0, 1.0)
-    push = JointAccelStandIn("push", 10, 5.0)
-    c, m, q = make(extra=[(bound, Category.JOINT_LIMITS), (push, Category.OPERATIONAL)])
-    cmd = c.step(RobotState(q, np.zeros(m.nv)), 0.0)
-    st = cmd.report["push"]
-    assert st.status is Feasibility.CONFLICT and st.yields_to == int(Category.JOINT_LIMITS)
-    np.testing.assert_allclose(st.residual, 4.0, atol=1e-5)
-    np.testing.assert_allclose(cmd.qdd[10], 1.0, atol=1e-6)
-
-
-def test_redundant_task_is_singular():
-    first = JointAccelStandIn("first", 10, 0.3)
-    again = JointAccelStandIn("again", 10, 0.3)
-    c, m, q = make(extra=[(first, Category.OPERATIONAL), (again, Category.POSTURE)],
-                   posture=False)
-    cmd = c.step(RobotState(q, np.zeros(m.nv)), 0.0)
-    assert cmd.report["first"].status is Feasibility.SATISFIED
-    assert cmd.report["first"].sigma_min > 0.1
-    assert cmd.report["again"].status is Feasibility.SINGULAR
-    assert cmd.report["again"].sigma_min < 1e-8
 
 
 @pytest.mark.parametrize("failure", ["raise", "nan"])
@@ -257,36 +184,3 @@ def test_bad_arguments():
     c = WholeBodyController(m)
     with pytest.raises(InvalidInput):
         c.step(RobotState(q[:-1], np.zeros(m.nv)), 0.0)
-
-
-def test_joint_limit_braking_follows_the_contacts_of_the_standing_stack():
-    """paper-humanoid: the knees brake the body about the soles while a foot holds (a few
-    rad/s^2, in single support too: all-or-none), the shanks alone with no contact (half the
-    acceleration bound)."""
-    from hqp import robots
-    from hqp.controller import standing_controller
-    from hqp.tasks.joint_limits import JointLimits
-
-    robot = robots.load("paper-humanoid")
-    c = standing_controller(robot, diagnostics="residuals")
-    limits = next(t for t in c.stack.tasks if isinstance(t, JointLimits))
-    m = c.model
-    left, right = m.joint_index("left_knee"), m.joint_index("right_knee")
-    state = RobotState(robot.q_standing, np.zeros(m.nv))
-    c.step(state, 0.0)
-    both = limits.braking_deceleration(m)
-    assert both[left] < 10.0 and both[right] < 10.0
-    c.deactivate_contact("left_foot", t=0.0, unload_time=0.0)
-    c.step(state, DT)
-    np.testing.assert_allclose(limits.braking_deceleration(m), both)  # single support
-    c.deactivate_contact("right_foot", t=DT, unload_time=0.0)
-    c.step(state, 1.5 * DT)
-    none = limits.braking_deceleration(m)
-    np.testing.assert_allclose(none[[left, right]],
-                               0.5 * limits.max_acceleration(m)[[left, right]])
-    assert none[left] > 2.0 * both[left]
-    c.activate_contact("left_foot", t=2 * DT)
-    c.step(state, 2 * DT)  # starts the torque blend, which also builds without the contact
-    c.step(state, 3 * DT + c.stack.blend_time)  # ends the blend
-    c.step(state, 4 * DT + c.stack.blend_time)
-    np.testing.assert_allclose(limits.braking_deceleration(m), both)
