@@ -452,3 +452,22 @@ def test_hand_reach_first_second_under_the_law_with_limit_zones(hierarchy):
     assert cog_error.max() < 2e-3  # [m]
     hand = ctrl.model.frame_placement(robot.hands[1]).translation  # at the last step
     assert np.linalg.norm(hand - goals["hand"]) < 0.7  # [m] (1.02 m at the start)
+
+
+def test_a_contact_made_is_blended_under_the_law_too(paper_humanoid):
+    """The blend of a contact made solves the hierarchy without it on a twin of the resolver
+    (before the resolver split, the law's blend asked the QP solver for backend 'nullspace')."""
+    from hqp.control.presets import standing_nullspace_controller
+    from hqp.model import RobotState
+
+    ctrl = standing_nullspace_controller(paper_humanoid, diagnostics="residuals")
+    state = RobotState(paper_humanoid.q_standing, np.zeros(ctrl.model.nv))
+    ctrl.step(state, 0.0)
+    ctrl.deactivate_contact("left_foot", t=0.001, unload_time=0.0)
+    ctrl.step(state, 0.001)
+    ctrl.activate_contact("left_foot", t=0.002)
+    cmd = ctrl.step(state, 0.002)
+    assert cmd.report.strictness_suspended and not cmd.safe_mode
+    assert np.all(np.isfinite(cmd.tau))
+    assert ctrl.last_law is not None and ctrl.last_problem is not None
+    assert ctrl.last_problem.support is not None and ctrl.last_problem.support[0].shape[0] == 12
