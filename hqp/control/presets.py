@@ -77,24 +77,9 @@ def viable_joint_limits(robot: Robot, model: RobotModel,
     The bound on ``|qdd|`` is the fixed-base torque estimate clipped to
     ``[5, max_joint_acceleration]`` rad/s^2; the braking assumption is the smaller of half of
     it and what the supports allow (:class:`~hqp.tasks.joint_limits.SupportBraking`,
-    all-or-none); velocity bounds are approached over 20 ms.
+    all-or-none); velocity bounds are approached over 20 ms. Why these choices (and what was
+    measured against the alternatives): docs/control.md, "The standing joint limits".
     """
-    # Viable joint limits. Bound on |qdd|: the fixed-base torque estimate, kept within
-    # [5, 50] rad/s^2. Braking assumption A of the viability bound: the smaller of half that
-    # bound (a reserve: braking on the curve of the full bound overshoots as soon as the
-    # realised deceleration falls short of the commanded one, e.g. on soft contacts) and the
-    # support-aware estimate (a leg joint moves the rest of the body about the soles: about
-    # 1 rad/s^2 at the ankles of paper-humanoid), so that a joint whose braking needs the
-    # contacts approaches its limit slowly enough to be stopped within them. As a bound on
-    # |qdd| the support-aware value would lock the ankles that balance needs; as the braking
-    # assumption it only caps the velocity toward a limit at sqrt(2 A d). Where the estimate
-    # is zero (g1's ankle roll: its torque limit cannot hold the whole body on one ankle, a
-    # case the rigid side-about-the-axis model does not describe in double support), half the
-    # bound is kept. With no contact at all (a jump's flight) the legs brake themselves, not
-    # the body (paper-humanoid's knee: 5.8 rad/s^2 standing, 25 in the air): SupportBraking,
-    # all-or-none. Per contact, a swing leg would get its free-limb value too; measured on
-    # `walk`, that made the swing legs approach their limits faster and the walk worse (a
-    # 198 N m torque step, a safe-mode step, torques clipped by 0.01 N m): not kept.
     qdd_max = np.clip(max_acceleration_from_torques(model, margin=0.5), 5.0,
                       max_joint_acceleration)
     braking = SupportBraking(model, [robot.contact(foot).frame for foot in robot.feet],
