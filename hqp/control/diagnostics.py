@@ -143,44 +143,7 @@ class Diagnostics:
             rep = solution.levels[k]
             active_rows = set(int(i) for i in rep.active)
             for span in by_level.get(k, []):
-                rows = built.rows[span.name]
-                parts = []
-                mats = []
-                if rows.A is not None:
-                    parts.append(rows.A @ x - rows.b)
-                    mats.append(rows.A)
-                if rows.C is not None:
-                    viol = violation(rows.C, rows.lower, rows.upper, x)
-                    parts.append(viol)
-                    idx = [i - span.ineq.start for i in range(span.ineq.start, span.ineq.stop)
-                           if i in active_rows]
-                    if idx:
-                        mats.append(rows.C[idx])
-                r = np.concatenate(parts) if parts else np.zeros(0)
-                residual = float(np.linalg.norm(r))
-                sigma = float("nan")
-                if rows.A is None:
-                    pass  # inequality rows only: satisfied or in conflict, never singular
-                elif full:
-                    P = np.vstack(mats) @ Z
-                    m_rows = P.shape[0]
-                    if m_rows > P.shape[1]:
-                        sigma = 0.0
-                    else:
-                        sv = np.linalg.svd(P, compute_uv=False)
-                        sigma = float(sv[m_rows - 1]) if sv.size >= m_rows else 0.0
-                else:
-                    sigma = float(rep.sigma_min)
-                yields_to = None
-                if residual > self.tolerance:
-                    status = Feasibility.CONFLICT
-                    if full:
-                        yields_to = self._yields_to(rows, r, bases, built, span)
-                elif rows.A is not None and np.isfinite(sigma) and sigma < self.singular_tolerance:
-                    status = Feasibility.SINGULAR
-                else:
-                    status = Feasibility.SATISFIED
-                out.append(TaskStatus(span.name, span.level, status, residual, yields_to, sigma))
+                out.append(self._hqp_status(built, span, x, Z, bases, rep.sigma_min, active_rows))
             if full and k < len(built.levels) - 1:
                 mats = []
                 if level.A is not None:
@@ -191,6 +154,49 @@ class Diagnostics:
                     Z = Z @ null_basis(np.vstack(mats) @ Z, rank_tol)
                 bases.append(Z)
         return tuple(out)
+
+    def _hqp_status(self, built: BuiltStack, span: TaskSpan, x: np.ndarray, Z: np.ndarray,
+                    bases: list[np.ndarray], level_sigma: float,
+                    active_rows: set[int]) -> TaskStatus:
+        """Status of one task: its residual at ``x``, its rows projected on ``Z`` (levels above)."""
+        rows = built.rows[span.name]
+        parts = []
+        mats = []
+        if rows.A is not None:
+            parts.append(rows.A @ x - rows.b)
+            mats.append(rows.A)
+        if rows.C is not None:
+            viol = violation(rows.C, rows.lower, rows.upper, x)
+            parts.append(viol)
+            idx = [i - span.ineq.start for i in range(span.ineq.start, span.ineq.stop)
+                   if i in active_rows]
+            if idx:
+                mats.append(rows.C[idx])
+        r = np.concatenate(parts) if parts else np.zeros(0)
+        residual = float(np.linalg.norm(r))
+        sigma = float("nan")
+        if rows.A is None:
+            pass  # inequality rows only: satisfied or in conflict, never singular
+        elif self.full:
+            P = np.vstack(mats) @ Z
+            m_rows = P.shape[0]
+            if m_rows > P.shape[1]:
+                sigma = 0.0
+            else:
+                sv = np.linalg.svd(P, compute_uv=False)
+                sigma = float(sv[m_rows - 1]) if sv.size >= m_rows else 0.0
+        else:
+            sigma = float(level_sigma)
+        yields_to = None
+        if residual > self.tolerance:
+            status = Feasibility.CONFLICT
+            if self.full:
+                yields_to = self._yields_to(rows, r, bases, built, span)
+        elif rows.A is not None and np.isfinite(sigma) and sigma < self.singular_tolerance:
+            status = Feasibility.SINGULAR
+        else:
+            status = Feasibility.SATISFIED
+        return TaskStatus(span.name, span.level, status, residual, yields_to, sigma)
 
     def _yields_to(self, rows: Rows, r: np.ndarray, bases: list[np.ndarray],
                    built: BuiltStack, span: TaskSpan) -> int | None:

@@ -247,29 +247,15 @@ def constraint_zones(
     for _ in range(zones.passes):
         new: list[tuple[np.ndarray, np.ndarray]] = []
         if hull is not None and not support_held:
-            cop, fz = center_of_pressure(m, law.qdd, height)
-            if state.cop is None:
-                state.cop = cop
-            target = None
-            if fz > 0.0:  # (a pulling support is beyond what these rows can repair)
-                point, inside = project_to_polygon(cop, hull)
-                if not inside:
-                    target = point
-            if target is not None:
-                new.append(support_moment_rows(m, np.array([target[0], target[1], height])))
+            support = _support_rows(m, law, hull, height, state)
+            if support is not None:
+                new.append(support)
                 support_held = True
                 state.support_active = True
         if zones.torque is not None:
-            limit = zones.torque * m.tau_max
-            over = [j for j in np.flatnonzero(np.abs(law.tau) > limit) if j not in held]
-            if over:
-                G = law.phi_pinv @ S  # tau_plain = G (qdd - qdd0)
-                for j in over:
-                    scale = 1.0 / max(float(m.tau_max[j]), 1e-9)
-                    target_j = np.sign(law.tau[j]) * limit[j] - law.tau_internal[j]
-                    new.append((scale * G[j:j + 1], scale * np.array(
-                        [target_j + float(G[j] @ law.qdd0)])))
-                    held.add(int(j))
+            torque = _torque_rows(m, law, zones.torque * m.tau_max, held, S)
+            if torque:
+                new.extend(torque)
                 state.torques_held = tuple(sorted(held))
         if not new:
             break
@@ -291,3 +277,33 @@ def constraint_zones(
         names = ", ".join(m.joint_names[j] for j in sorted(held))
         notes.append(f"torque zone active: {names} held at {zones.torque:g} x tau_max")
     return law, problem
+
+
+def _support_rows(model: RobotModel, law: LawSolution, hull: np.ndarray, height: float,
+                  state: ZoneState) -> tuple[np.ndarray, np.ndarray] | None:
+    """Rows holding the law's centre of pressure at the zone's border, ``None`` when inside."""
+    cop, fz = center_of_pressure(model, law.qdd, height)
+    if state.cop is None:
+        state.cop = cop
+    if not fz > 0.0:  # a pulling support is beyond what these rows can repair
+        return None
+    point, inside = project_to_polygon(cop, hull)
+    if inside:
+        return None
+    return support_moment_rows(model, np.array([point[0], point[1], height]))
+
+
+def _torque_rows(model: RobotModel, law: LawSolution, limit: np.ndarray, held: set[int],
+                 S: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Rows ``tau_j(qdd) = +-limit_j`` of the joints newly past their zone (added to ``held``)."""
+    over = [j for j in np.flatnonzero(np.abs(law.tau) > limit) if j not in held]
+    rows: list[tuple[np.ndarray, np.ndarray]] = []
+    if not over:
+        return rows
+    G = law.phi_pinv @ S  # tau_plain = G (qdd - qdd0)
+    for j in over:
+        scale = 1.0 / max(float(model.tau_max[j]), 1e-9)
+        target_j = np.sign(law.tau[j]) * limit[j] - law.tau_internal[j]
+        rows.append((scale * G[j:j + 1], scale * np.array([target_j + float(G[j] @ law.qdd0)])))
+        held.add(int(j))
+    return rows
