@@ -23,11 +23,13 @@ from typing import Any
 import numpy as np
 
 from hqp.control import presets
-from hqp.model import RobotModel
-from hqp.robots import Robot
+from hqp.model import RobotModel, RobotState
+from hqp.robots import Robot, load
+from hqp.sim.run import simulate
 from hqp.stack import Stack
 from hqp.tasks.base import Category, Task
-from hqp.tasks.joint_limits import JointLimits
+from hqp.tasks.com import support_center
+from hqp.tasks.joint_limits import JointLimits, max_acceleration_from_torques
 
 DT = 1e-3
 """Control and simulation period [s]."""
@@ -70,9 +72,6 @@ def standing_setup(name: str) -> tuple[Robot, RobotModel, np.ndarray]:
         ``(robot, model, feet)`` with ``feet`` the centre of the soles ``(3,)`` [m] in the world.
 
     """
-    from hqp.robots import load
-    from hqp.tasks.com import support_center
-
     robot = load(name)
     model = robot.model()
     model.update(robot.q_standing, np.zeros(model.nv))
@@ -94,8 +93,6 @@ def braking_acceleration(robot: Robot, model: RobotModel) -> np.ndarray:
     :data:`JOINT_LIMIT_MARGIN` of the support-aware single-joint estimate at the
     standing posture; the HQP stack and PlaCo's ``qdd_safe`` use the same values.
     """
-    from hqp.tasks.joint_limits import max_acceleration_from_torques
-
     model.update(robot.q_standing, np.zeros(model.nv))
     return max_acceleration_from_torques(model, margin=JOINT_LIMIT_MARGIN,
                                          supports=list(robot.feet))
@@ -173,8 +170,6 @@ def kinematic_rollout(
 
     Semi-implicit Euler on the manifold: ``v += dt qdd``, ``q = q (+) dt v``.
     """
-    from hqp.model import RobotState
-
     q = q0.copy()
     v = np.zeros(model.nv)
     n = int(round(duration / DT))
@@ -216,8 +211,6 @@ def run_controller(
         The simulator's log and a note on what the controller cannot express ("" if nothing).
 
     """
-    from hqp.sim.run import simulate
-
     note = ""
     if spec_controller == "placo":
         from comparisons.placo_runner import PlacoController, placo_note
