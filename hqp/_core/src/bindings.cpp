@@ -3,6 +3,7 @@
 #include <nanobind/nanobind.h>
 #include <nanobind/stl/string.h>
 
+#include "bindings_model.hpp"
 #include "bindings_solver.hpp"
 #include "model.hpp"
 
@@ -11,6 +12,7 @@ namespace nb = nanobind;
 NB_MODULE(_ext, m) {
   m.doc() = "hqp's native core: the strict lexicographic solver (and, from part 2, the step).";
   hqp::bind_solver(m);
+  hqp::bind_model(m);
   m.def(
       "check_urdf_model",
       [](const std::string& path, bool free_flyer, const Eigen::VectorXd& q,
