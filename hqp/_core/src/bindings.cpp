@@ -5,6 +5,7 @@
 
 #include "bindings_model.hpp"
 #include "bindings_solver.hpp"
+#include "bindings_tasks.hpp"
 #include "model.hpp"
 
 namespace nb = nanobind;
@@ -13,6 +14,7 @@ NB_MODULE(_ext, m) {
   m.doc() = "hqp's native core: the strict lexicographic solver (and, from part 2, the step).";
   hqp::bind_solver(m);
   hqp::bind_model(m);
+  hqp::bind_tasks(m);
   m.def(
       "check_urdf_model",
       [](const std::string& path, bool free_flyer, const Eigen::VectorXd& q,

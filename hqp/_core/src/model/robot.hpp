@@ -51,6 +51,8 @@ class RobotCore {
   Vector6d frame_drift(int frame) const;
   const pinocchio::SE3& frame_placement(int frame) const { return data_.oMf[frame]; }
 
+  const Eigen::VectorXd& q() const { return q_; }
+  const Eigen::VectorXd& v() const { return v_; }
   const Eigen::MatrixXd& M() const { return M_; }
   const Eigen::VectorXd& h() const { return data_.nle; }
   const Eigen::VectorXd& g() const { return data_.g; }
