@@ -101,3 +101,83 @@ def test_pd_feedback_equals_the_python_reference_with_and_without_saturation():
             out = core.pd_feedback(e, rate, ref.kp, ref.kv, ref.max_velocity,
                                    ref.max_acceleration)
             np.testing.assert_allclose(out, ref.feedback(e, rate), rtol=1e-15, atol=1e-15)
+
+
+def _contacts(robot, py):
+    from hqp.layout import ContactType
+    from hqp.tasks.contact import Contact
+
+    out = []
+    for k, c in enumerate(robot.contacts):
+        out.append(Contact(c.name, c.frame, c.kind, mu=c.friction, half_length=c.half_length,
+                           half_width=c.half_width, f_min=5.0 * k, f_max=800.0 + k,
+                           kp=(20.0 if k == 0 else 0.0), kd=(3.0 if k == 0 else 0.0),
+                           model=py))
+    # a point contact on a hand too (3 entries)
+    out.append(Contact("hand", robot.hands[0], ContactType.POINT, mu=0.4, model=py))
+    return out
+
+
+@pytest.mark.parametrize("name", robots.NAMES)
+def test_physics_kernels_equal_the_python_rows(name):
+    """[M | -J_c^T], the contact condition rows (kp/kd, inactive) and the wrench-cone limits."""
+    import pinocchio as pin
+
+    from hqp.tasks.dynamics import contact_dynamics_matrix
+
+    robot = robots.load(name)
+    py = robot.model()
+    nat = native_model(robot)
+    contacts = _contacts(robot, py)
+    layout = Layout.build(py.nv, [c.layout_entry() for c in contacts])
+    slots = [(nat.frame_id(c.frame), c.kind.value, layout.contact(c.name).start)
+             for c in contacts]
+    rng = np.random.default_rng(9)
+    kernels = []
+    for c, (frame, size, start) in zip(contacts, slots):
+        kernels.append(core.ContactKernel(frame, size, start, c.mu, c.half_length, c.half_width,
+                                          c.f_min, c.max_normal_force, c.kp, c.kd))
+    for trial in range(10):
+        q = py.random_configuration(rng)
+        v = rng.normal(size=py.nv)
+        py.update(q, v)
+        nat.update(q, v)
+        G = contact_dynamics_matrix(py, layout)
+        _close_rows(core.contact_dynamics(nat, slots), G, "[M | -J^T]")
+        for c, kernel in zip(contacts, kernels):
+            active = trial % 3 != 2
+            if not active:
+                c.deactivate()
+                kernel.deactivate()
+            elif trial % 2:  # a given reference placement of the kp term
+                ref = py.frame_placement(c.frame) * pin.exp6(rng.normal(scale=0.05, size=6))
+                c.activate(ref)
+                kernel.activate(ref.homogeneous)
+            elif trial == 0:  # the placement at the first rows becomes the reference
+                c.activate()
+                kernel.activate()
+            rows = c.rows(py, layout, 1e-3, 0.0)
+            A, b = kernel.write(nat, layout.n)
+            _close_rows(A, rows.A, c.name + " A")
+            _close_rows(b, rows.b, c.name + " b")
+            lim = c.limit_rows(py, layout)
+            C, lo, up = kernel.write_limits(nat, layout.n)
+            _close_rows(C, lim.C, c.name + " C")
+            np.testing.assert_array_equal(lo, lim.lower)
+            np.testing.assert_array_equal(up, lim.upper)
+
+
+def _close_rows(a, b, what):
+    np.testing.assert_allclose(a, b, rtol=0, atol=1e-10 * max(1.0, float(np.abs(b).max())),
+                               err_msg=what)
+
+
+def test_wrench_cone_equals_the_python_cone():
+    from hqp.layout import ContactType
+    from hqp.tasks.contact import Contact
+
+    for kind, mu, X, Y in [(ContactType.SURFACE, 0.7, 0.1, 0.05), (ContactType.POINT, 0.3, 0, 0),
+                           (ContactType.SURFACE, 1.2, 0.12, 0.04)]:
+        c = Contact("c", "f", kind, mu=mu, half_length=X, half_width=Y)
+        np.testing.assert_array_equal(core.contact_local_limits(kind.value, mu, X, Y),
+                                      c.local_limits())

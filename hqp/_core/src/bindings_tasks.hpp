@@ -7,8 +7,16 @@
 #include <nanobind/stl/string.h>
 
 #include <stdexcept>
+#include <optional>
 #include <string>
+#include <tuple>
+#include <vector>
 
+#include <nanobind/stl/optional.h>
+#include <nanobind/stl/tuple.h>
+#include <nanobind/stl/vector.h>
+
+#include "tasks/physics.hpp"
 #include "tasks/reference.hpp"
 #include "tasks/vector_tracking.hpp"
 
@@ -25,7 +33,73 @@ inline PDGains make_gains(double kp, double kv, double max_velocity, double max_
   return g;
 }
 
+inline LayoutC make_layout(Eigen::Index nv, const std::vector<std::tuple<int, int, Eigen::Index>>& slots) {
+  LayoutC layout;
+  layout.nv = nv;
+  for (const auto& [frame, size, start] : slots) {
+    if (size != 3 && size != 6) throw std::invalid_argument("contact slot size must be 3 or 6");
+    layout.slots.push_back({frame, size, start});
+  }
+  return layout;
+}
+
 inline void bind_tasks(nb::module_& m) {
+  m.def(
+      "contact_dynamics",
+      [](const RobotCore& robot, const std::vector<std::tuple<int, int, Eigen::Index>>& slots) {
+        const LayoutC layout = make_layout(robot.nv(), slots);
+        Eigen::MatrixXd G = Eigen::MatrixXd::Zero(robot.nv(), layout.n());
+        RobotCore::Matrix6Xd J6(6, robot.nv());
+        contact_dynamics(robot, layout, G, J6);
+        return G;
+      },
+      nb::arg("robot"), nb::arg("slots"),
+      "[M | -J_1^T ... -J_k^T] (nv, n) for contact slots (frame, size, start).");
+  m.def("contact_local_limits", &contact_local_limits, nb::arg("size"), nb::arg("mu"),
+        nb::arg("half_length"), nb::arg("half_width"));
+  nb::class_<ContactKernel>(m, "ContactKernel")
+      .def(
+          "__init__",
+          [](ContactKernel* self, int frame, int size, Eigen::Index start, double mu,
+             double half_length, double half_width, double f_min, double f_max, double kp,
+             double kd) {
+            if (size != 3 && size != 6) throw std::invalid_argument("contact size must be 3 or 6");
+            new (self) ContactKernel({frame, size, start}, mu, half_length, half_width, f_min,
+                                     f_max, kp, kd);
+          },
+          nb::arg("frame"), nb::arg("size"), nb::arg("start"), nb::arg("mu"),
+          nb::arg("half_length"), nb::arg("half_width"), nb::arg("f_min"), nb::arg("f_max"),
+          nb::arg("kp"), nb::arg("kd"))
+      .def("deactivate", &ContactKernel::deactivate)
+      .def(
+          "activate",
+          [](ContactKernel& k, std::optional<Eigen::Matrix4d> T) {
+            if (!T) {
+              k.activate();
+              return;
+            }
+            k.activate(pinocchio::SE3(Eigen::Matrix3d(T->topLeftCorner<3, 3>()),
+                                      Eigen::Vector3d(T->topRightCorner<3, 1>())));
+          },
+          nb::arg("reference").none() = nb::none())
+      .def(
+          "write",
+          [](ContactKernel& k, const RobotCore& robot, Eigen::Index n) {
+            Eigen::MatrixXd A(k.rows(), n);
+            Eigen::VectorXd b(k.rows());
+            k.write(robot, A, b);
+            return nb::make_tuple(A, b);
+          },
+          nb::arg("robot"), nb::arg("n"))
+      .def(
+          "write_limits",
+          [](const ContactKernel& k, const RobotCore& robot, Eigen::Index n) {
+            Eigen::MatrixXd C(k.limit_rows(), n);
+            Eigen::VectorXd lo(k.limit_rows()), up(k.limit_rows());
+            k.write_limits(robot, C, lo, up);
+            return nb::make_tuple(C, lo, up);
+          },
+          nb::arg("robot"), nb::arg("n"));
   m.def(
       "pd_feedback",
       [](const Eigen::VectorXd& e, const Eigen::VectorXd& rate, double kp, double kv,
