@@ -25,6 +25,7 @@ excess of :func:`hqp.bench.accuracy.relative_excess`, largest over the states).
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable, Sequence
 from typing import Any
 
@@ -144,27 +145,18 @@ def _accuracy(steppers: dict[str, _Stepper], sts: list[tuple[np.ndarray, np.ndar
     return tracker.level, tracker.contract
 
 
-def run_robot(robot_name: str, names: Sequence[str], *, quick: bool = False,
-              progress: Callable[[str], None] | None = None) -> list[dict[str, Any]]:
-    """Rows of one robot."""
-    import time
+def _probe(steppers: dict[str, _Stepper], count: int,
+           failed: dict[str, str]) -> dict[str, Samples]:
+    """One pass over the states per configuration (also the warm-up of persistent QPs).
 
-    robot = load_robot(robot_name)
-    sts = states(robot_name, count=2 if quick else 8)
-    steppers: dict[str, _Stepper] = {}
-    failed: dict[str, str] = {}
-    for name in names:
-        try:
-            steppers[name] = _Stepper(name, robot, sts)
-        except Exception as exc:  # noqa: BLE001 - an unavailable configuration is reported
-            failed[name] = f"{type(exc).__name__}: {exc}"
-    # probe: one pass over the states (also the warm-up of persistent QPs)
+    A configuration that raises is moved from ``steppers`` to ``failed``.
+    """
     probe: dict[str, Samples] = {}
     for name, st in list(steppers.items()):
         d = []
         c = []
         try:
-            for _ in range(len(sts)):
+            for _ in range(count):
                 c0 = time.process_time()
                 t0 = time.perf_counter()
                 st()
@@ -175,6 +167,63 @@ def run_robot(robot_name: str, names: Sequence[str], *, quick: bool = False,
             del steppers[name]
             continue
         probe[name] = Samples(np.asarray(d), False, np.asarray(c))
+    return probe
+
+
+def _shape(steppers: dict[str, _Stepper]) -> tuple[int | None, int | None, int | None]:
+    """``(n, levels, rows)`` of the first hqp configuration's last built stack."""
+    ref_st = next((st for n, st in steppers.items() if n.startswith("hqp/")), None)
+    if ref_st is None:
+        return None, None, None
+    levels = ref_st.ctrl.last_built.levels  # type: ignore[union-attr]
+    n_rows = sum(0 if lv.A is None else np.shape(lv.A)[0] for lv in levels)
+    n_rows += sum(0 if lv.C is None else np.shape(lv.C)[0] for lv in levels)
+    return ref_st.ctrl.layout.n, len(levels), n_rows  # type: ignore[union-attr]
+
+
+def _measured(row: dict[str, Any], st: _Stepper, t: Samples, probe_only: bool) -> None:
+    """Add the timings and the step's phases and levels to a row."""
+    row.update(median_ms=round(t.median_ms, 4), p95_ms=round(t.p95_ms, 4),
+               settled=t.settled, samples=int(t.samples.size),
+               cpu_median_ms=round(t.cpu_median_ms, 4) if t.cpu.size else None)
+    if probe_only:
+        row["probe_only"] = True
+    if st.phases:
+        keys = [k for k in st.phases[0] if k != "total"]
+        row["phases_ms"] = {k: round(1e3 * float(np.median([p[k] for p in st.phases])), 4)
+                            for k in keys}
+    if st.levels:
+        L = min(len(lv) for lv in st.levels)
+        row["levels_ms"] = [round(1e3 * float(np.median([lv[k] for lv in st.levels])), 4)
+                            for k in range(L)]
+
+
+def _ratios(rows: list[dict[str, Any]]) -> None:
+    """Add each row's time over PlaCo's and over the null-space law's (wall and CPU)."""
+    for key, suffix in (("median_ms", ""), ("cpu_median_ms", "_cpu")):
+        placo = next((r[key] for r in rows if r["solver"] == "placo" and r.get(key)), None)
+        law = next((r[key] for r in rows if r["solver"] == "nullspace" and r.get(key)), None)
+        for r in rows:
+            if r.get(key):
+                if placo:
+                    r["over_placo" + suffix] = round(r[key] / placo, 3)
+                if law:
+                    r["over_nullspace" + suffix] = round(r[key] / law, 3)
+
+
+def run_robot(robot_name: str, names: Sequence[str], *, quick: bool = False,
+              progress: Callable[[str], None] | None = None) -> list[dict[str, Any]]:
+    """Rows of one robot."""
+    robot = load_robot(robot_name)
+    sts = states(robot_name, count=2 if quick else 8)
+    steppers: dict[str, _Stepper] = {}
+    failed: dict[str, str] = {}
+    for name in names:
+        try:
+            steppers[name] = _Stepper(name, robot, sts)
+        except Exception as exc:  # noqa: BLE001 - an unavailable configuration is reported
+            failed[name] = f"{type(exc).__name__}: {exc}"
+    probe = _probe(steppers, len(sts), failed)
     slow = {n for n in steppers if np.median(probe[n].cpu) > SLOW_SECONDS}
     for st in steppers.values():
         st.record = True
@@ -183,16 +232,8 @@ def run_robot(robot_name: str, names: Sequence[str], *, quick: bool = False,
         warmup=2 * len(sts), batch=len(sts), min_samples=80, max_seconds=45.0)
     timings = interleaved(fns, progress=progress, **settings)  # type: ignore[arg-type]
     ex, contract_excess = _accuracy(steppers, sts)
+    n_var, n_levels, n_rows = _shape(steppers)
     rows: list[dict[str, Any]] = []
-    ref_st = next((st for n, st in steppers.items() if n.startswith("hqp/")), None)
-    n_var = ref_st.ctrl.layout.n if ref_st is not None else None  # type: ignore[union-attr]
-    n_levels = len(ref_st.ctrl.last_built.levels) if ref_st is not None else None  # type: ignore[union-attr]
-    n_rows = None
-    if ref_st is not None:
-        n_rows = sum(0 if lv.A is None else np.shape(lv.A)[0]
-                     for lv in ref_st.ctrl.last_built.levels)  # type: ignore[union-attr]
-        n_rows += sum(0 if lv.C is None else np.shape(lv.C)[0]
-                      for lv in ref_st.ctrl.last_built.levels)  # type: ignore[union-attr]
     for name in names:
         parts = name.split("/")
         row: dict[str, Any] = {
@@ -205,35 +246,13 @@ def run_robot(robot_name: str, names: Sequence[str], *, quick: bool = False,
             row.update(median_ms=None, p95_ms=None, failed=failed[name])
             rows.append(row)
             continue
-        st = steppers[name]
-        t = timings[name] if name in timings else probe[name]
-        row.update(median_ms=round(t.median_ms, 4), p95_ms=round(t.p95_ms, 4),
-                   settled=t.settled, samples=int(t.samples.size),
-                   cpu_median_ms=round(t.cpu_median_ms, 4) if t.cpu.size else None)
-        if name in slow:
-            row["probe_only"] = True
-        if st.phases:
-            keys = [k for k in st.phases[0] if k != "total"]
-            row["phases_ms"] = {k: round(1e3 * float(np.median([p[k] for p in st.phases])), 4)
-                                for k in keys}
-        if st.levels:
-            L = min(len(lv) for lv in st.levels)
-            row["levels_ms"] = [round(1e3 * float(np.median([lv[k] for lv in st.levels])), 4)
-                                for k in range(L)]
+        _measured(row, steppers[name], timings[name] if name in timings else probe[name],
+                  name in slow)
         if name in ex:
-            e = ex[name]
-            row["level_cost_excess"] = [float(f"{v:.3g}") for v in e]
+            row["level_cost_excess"] = [float(f"{v:.3g}") for v in ex[name]]
             row["cost_excess"] = float(f"{contract_excess[name]:.3g}")
         rows.append(row)
-    for key, suffix in (("median_ms", ""), ("cpu_median_ms", "_cpu")):
-        placo = next((r[key] for r in rows if r["solver"] == "placo" and r.get(key)), None)
-        law = next((r[key] for r in rows if r["solver"] == "nullspace" and r.get(key)), None)
-        for r in rows:
-            if r.get(key):
-                if placo:
-                    r["over_placo" + suffix] = round(r[key] / placo, 3)
-                if law:
-                    r["over_nullspace" + suffix] = round(r[key] / law, 3)
+    _ratios(rows)
     return rows
 
 
