@@ -181,3 +181,44 @@ def test_wrench_cone_equals_the_python_cone():
         c = Contact("c", "f", kind, mu=mu, half_length=X, half_width=Y)
         np.testing.assert_array_equal(core.contact_local_limits(kind.value, mu, X, Y),
                                       c.local_limits())
+
+
+@pytest.mark.parametrize("name", robots.NAMES)
+def test_joint_limit_bounds_equal_the_python_bounds(name):
+    """Viable bounds at states inside, at and past the limits, slow and fast, for several
+    settings (acceleration bounds on/off, reserve, velocity time, margins)."""
+    from hqp.tasks.joint_limits import JointLimits
+
+    robot = robots.load(name)
+    py = robot.model()
+    na = py.na
+    rng = np.random.default_rng(21)
+    settings = [
+        dict(qdd_max=50.0),
+        dict(qdd_max=rng.uniform(5.0, 80.0, na), braking=rng.uniform(0.5, 5.0, na), reserve=4.0,
+             velocity_time=0.05, position_margin=0.02, velocity_scale=0.8),
+        dict(qdd_max=30.0, braking=2.0, acceleration_bounds=False, inactive_beyond=200.0),
+    ]
+    for kwargs in settings:
+        jl = JointLimits(**kwargs)
+        for trial in range(12):
+            q = py.random_configuration(rng)
+            lo, hi = py.q_lower, py.q_upper
+            span = np.where(np.isfinite(hi - lo), hi - lo, 1.0)
+            if trial % 3 == 1:  # some joints past their limits, some at them
+                pick = rng.random(na) < 0.3
+                q[py.actuated_q] = np.where(pick, hi + rng.uniform(-0.01, 0.05, na) * span,
+                                            q[py.actuated_q])
+            v = rng.normal(scale=[0.3, 3.0, 30.0][trial % 3], size=py.nv)
+            py.update(q, v)
+            dt = [1e-3, 2e-3, 5e-3][trial % 3]
+            lb, ub = jl.bounds(py, dt)
+            nlb, nub = core.joint_limit_bounds(
+                py.q[py.actuated_q], py.v[py.actuated], lo + jl.position_margin,
+                hi - jl.position_margin, jl.velocity_scale * py.v_max, jl.max_acceleration(py),
+                jl.braking_deceleration(py), dt, jl.reserve, jl.velocity_time,
+                jl.inactive_beyond, jl.acceleration_bounds)
+            for a, b in ((nlb, lb), (nub, ub)):
+                np.testing.assert_array_equal(np.isinf(a), np.isinf(b))
+                f = np.isfinite(b)
+                np.testing.assert_allclose(a[f], b[f], rtol=1e-12, atol=1e-12)

@@ -16,6 +16,7 @@
 #include <nanobind/stl/tuple.h>
 #include <nanobind/stl/vector.h>
 
+#include "tasks/joint_limits.hpp"
 #include "tasks/physics.hpp"
 #include "tasks/reference.hpp"
 #include "tasks/vector_tracking.hpp"
@@ -44,6 +45,26 @@ inline LayoutC make_layout(Eigen::Index nv, const std::vector<std::tuple<int, in
 }
 
 inline void bind_tasks(nb::module_& m) {
+  m.def(
+      "joint_limit_bounds",
+      [](const Eigen::VectorXd& q, const Eigen::VectorXd& v, const Eigen::VectorXd& q_lower,
+         const Eigen::VectorXd& q_upper, const Eigen::VectorXd& v_max, const Eigen::VectorXd& A,
+         const Eigen::VectorXd& B, double dt, double reserve, double velocity_time,
+         double inactive_beyond, bool acceleration_bounds) {
+        const Eigen::Index k = q.size();
+        for (const Eigen::VectorXd* a : {&v, &q_lower, &q_upper, &v_max, &A, &B}) {
+          if (a->size() != k) throw std::invalid_argument("joint_limit_bounds: sizes differ");
+        }
+        JointLimitParams p{q_lower, q_upper, v_max, reserve, velocity_time, inactive_beyond,
+                           acceleration_bounds};
+        Eigen::VectorXd lb(k), ub(k);
+        joint_limit_bounds(p, q, v, A, B, dt, lb, ub);
+        return nb::make_tuple(lb, ub);
+      },
+      nb::arg("q"), nb::arg("v"), nb::arg("q_lower"), nb::arg("q_upper"), nb::arg("v_max"),
+      nb::arg("A"), nb::arg("B"), nb::arg("dt"), nb::arg("reserve"), nb::arg("velocity_time"),
+      nb::arg("inactive_beyond"), nb::arg("acceleration_bounds"),
+      "Viable joint-limit acceleration bounds (lb, ub) (hqp.tasks.joint_limits.JointLimits).");
   m.def(
       "contact_dynamics",
       [](const RobotCore& robot, const std::vector<std::tuple<int, int, Eigen::Index>>& slots) {
