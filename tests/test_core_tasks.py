@@ -13,7 +13,9 @@ import pytest
 
 from hqp import robots
 from hqp.layout import Layout
+from hqp.tasks.centroidal import CentroidalMomentumTask
 from hqp.tasks.com import CoMTask
+from hqp.tasks.orientation import OrientationTask, jlog3_rate_times
 from hqp.tasks.position import PositionTask
 from hqp.tasks.posture import PostureTask
 from hqp.tasks.reference import PDReference
@@ -32,7 +34,8 @@ def _gains(task):
 
 def native_kernel(task, nat):
     """The kernel that mirrors a Python tracking task (its frame, selection and scale)."""
-    scale = NO_SCALE if task.scale is None else np.asarray(task.scale, dtype=float)
+    scale = getattr(task, "scale", None)
+    scale = NO_SCALE if scale is None else np.asarray(scale, dtype=float)
     if isinstance(task, PositionTask):
         return core.VectorTracking("frame_position", nat.frame_id(task.frame),
                                    np.asarray(task.axes, dtype=np.int32), np.zeros(0, np.int32),
@@ -40,6 +43,11 @@ def native_kernel(task, nat):
     if isinstance(task, CoMTask):
         return core.VectorTracking("com", -1, np.arange(task.goal_size, dtype=np.int32),
                                    np.zeros(0, np.int32), scale, *_gains(task))
+    if isinstance(task, CentroidalMomentumTask):
+        return core.VectorTracking("centroidal", -1, task.components.astype(np.int32),
+                                   np.zeros(0, np.int32), NO_SCALE, *_gains(task))
+    if isinstance(task, OrientationTask):
+        return core.OrientationTracking(nat.frame_id(task.frame), *_gains(task))
     if isinstance(task, PostureTask):
         return core.VectorTracking("joints", -1, task._q_index.astype(np.int32),
                                    task._v_index.astype(np.int32), scale, *_gains(task))
@@ -55,7 +63,26 @@ def _tasks(robot, py, rng):
         CoMTask(py, horizontal=True, kp=30.0, max_acceleration=0.5, name="com_xy"),
         PostureTask(py, kp=20.0, weights=rng.uniform(0.5, 2.0, py.na)),
         PostureTask.symmetry(py, kp=10.0, **sat),
+        CentroidalMomentumTask(py, gain=8.0),
+        CentroidalMomentumTask(py, "all", gain=5.0, max_rate=3.0, name="momentum"),
+        OrientationTask(py, robot.base_frame, kp=40.0),
+        OrientationTask(py, robot.hands[0], kp=60.0, kv=12.0, max_velocity=0.5,
+                        max_acceleration=4.0, name="hand_orientation"),
     ]
+
+
+def _random_goal(task, py, rng):
+    """A goal near the current value, with feedforward: (goal, velocity, acceleration)."""
+    import pinocchio as pin
+
+    if isinstance(task, OrientationTask):
+        R = task.value(py) @ pin.exp3(rng.normal(scale=0.4, size=3))
+        return R, rng.normal(size=3), rng.normal(size=3)
+    if isinstance(task, CentroidalMomentumTask):
+        m = len(task.components)
+        return task.value(py) + rng.normal(size=m), rng.normal(size=m), None
+    m = task.goal_size
+    return task.value(py) + rng.normal(scale=0.2, size=m), rng.normal(size=m), rng.normal(size=m)
 
 
 @pytest.mark.parametrize("name", robots.NAMES)
@@ -74,11 +101,13 @@ def test_tracking_kernels_equal_the_python_rows(name):
         py.update(q, v)
         nat.update(q, v)
         for task, kernel in zip(tasks, kernels):
-            m = task.goal_size
-            goal = task.value(py) + rng.normal(scale=0.2, size=m)
-            vel, acc = rng.normal(size=m), rng.normal(size=m)
-            task.set_goal(goal, vel, acc)
-            kernel.set_goal(goal, vel, acc)
+            goal, vel, acc = _random_goal(task, py, rng)
+            if acc is None:  # momentum: the goal and its rate
+                task.set_goal(goal, vel)
+                kernel.set_goal(goal, vel, np.zeros_like(vel))
+            else:
+                task.set_goal(goal, vel, acc)
+                kernel.set_goal(goal, vel, acc)
             rows = task.rows(py, layout, 1e-3, 0.0)
             A, b = kernel.write(nat, n)
             scale = max(1.0, np.abs(rows.b).max())
@@ -86,8 +115,21 @@ def test_tracking_kernels_equal_the_python_rows(name):
                 1.0, np.abs(rows.A).max()), err_msg=task.name)
             assert not A[:, layout.n:].any()
             np.testing.assert_allclose(b, rows.b, rtol=0, atol=1e-10 * scale, err_msg=task.name)
-            np.testing.assert_allclose(kernel.reference_acceleration,
-                                       task.reference_acceleration(), rtol=0, atol=1e-10 * scale)
+            if hasattr(task, "reference_acceleration"):
+                np.testing.assert_allclose(kernel.reference_acceleration,
+                                           task.reference_acceleration(), rtol=0,
+                                           atol=1e-10 * scale)
+
+
+def test_jlog3_rate_times_equals_the_python_function():
+    rng = np.random.default_rng(2)
+    for scale in (1e-4, 1e-2, 0.5, 3.0):  # both branches of the series
+        for _ in range(20):
+            e = rng.normal(size=3)
+            e *= scale / np.linalg.norm(e)
+            de, xi = rng.normal(size=3), rng.normal(size=3)
+            np.testing.assert_allclose(core.jlog3_rate_times(e, de, xi),
+                                       jlog3_rate_times(e, de, xi), rtol=1e-13, atol=1e-15)
 
 
 def test_pd_feedback_equals_the_python_reference_with_and_without_saturation():

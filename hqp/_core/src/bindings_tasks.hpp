@@ -17,6 +17,7 @@
 #include <nanobind/stl/vector.h>
 
 #include "tasks/joint_limits.hpp"
+#include "tasks/orientation.hpp"
 #include "tasks/physics.hpp"
 #include "tasks/reference.hpp"
 #include "tasks/vector_tracking.hpp"
@@ -132,6 +133,37 @@ inline void bind_tasks(nb::module_& m) {
       },
       nb::arg("error"), nb::arg("rate"), nb::arg("kp"), nb::arg("kv"), nb::arg("max_velocity"),
       nb::arg("max_acceleration"), "a_fb of seed 003 eq. 27-28 (hqp.tasks.reference.PDReference).");
+  nb::class_<OrientationTracking>(m, "OrientationTracking")
+      .def(
+          "__init__",
+          [](OrientationTracking* self, int frame, double kp, double kv, double max_velocity,
+             double max_acceleration) {
+            new (self) OrientationTracking(frame, make_gains(kp, kv, max_velocity, max_acceleration));
+          },
+          nb::arg("frame"), nb::arg("kp"), nb::arg("kv"), nb::arg("max_velocity"),
+          nb::arg("max_acceleration"))
+      .def("set_goal", &OrientationTracking::set_goal, nb::arg("rotation"), nb::arg("velocity"),
+           nb::arg("acceleration"))
+      .def(
+          "write",
+          [](OrientationTracking& t, const RobotCore& robot, Eigen::Index n) {
+            if (n < robot.nv()) throw std::invalid_argument("n below the robot's nv");
+            Eigen::MatrixXd A(3, n);
+            Eigen::VectorXd b(3);
+            t.write(robot, A, b);
+            return nb::make_tuple(A, b);
+          },
+          nb::arg("robot"), nb::arg("n"))
+      .def_prop_ro("error", [](const OrientationTracking& t) { return Eigen::Vector3d(t.error()); })
+      .def_prop_ro("reference_acceleration", [](const OrientationTracking& t) {
+        return Eigen::Vector3d(t.reference_acceleration());
+      });
+  m.def(
+      "jlog3_rate_times",
+      [](const Eigen::Vector3d& e, const Eigen::Vector3d& de, const Eigen::Vector3d& xi) {
+        return Eigen::Vector3d(jlog3_rate_times(e, de, xi));
+      },
+      nb::arg("e"), nb::arg("de"), nb::arg("xi"));
   nb::class_<VectorTracking>(m, "VectorTracking")
       .def(
           "__init__",
@@ -146,6 +178,8 @@ inline void bind_tasks(nb::module_& m) {
               k = VectorTracking::Kind::kCenterOfMass;
             else if (kind == "joints")
               k = VectorTracking::Kind::kJoints;
+            else if (kind == "centroidal")
+              k = VectorTracking::Kind::kCentroidal;
             else
               throw std::invalid_argument("unknown tracking kind '" + kind + "'");
             new (self) VectorTracking(k, frame, select, v_index, scale,

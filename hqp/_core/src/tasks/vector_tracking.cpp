@@ -73,6 +73,16 @@ void VectorTracking::write(const RobotCore& robot, Eigen::Ref<Eigen::MatrixXd> A
       }
       break;
     }
+    case Kind::kCentroidal: {
+      for (Index i = 0; i < m; ++i) {
+        const int k = select_(i);
+        e_(i) = 0.0;
+        rate_(i) = robot.centroidal_matrix().row(k).dot(robot.v()) - goal_(i);
+        drift_(i) = robot.centroidal_drift()(k) - goal_v_(i);
+        J.row(i) = robot.centroidal_matrix().row(k);
+      }
+      break;
+    }
   }
   if (scale_.size()) {
     e_.array() *= scale_.array();

@@ -5,6 +5,10 @@
 //
 //   e = W (x - x_goal), de/dt = W (xd - xd_goal), drift = W (dJ v - xdd_goal), J = W J_x
 //   rows [J | 0] x = a_fb(e, de/dt) - drift
+//
+// And the centroidal momentum h = A_g v (CentroidalMomentumTask, a velocity-level task):
+// e = 0, de/dt = S h - h_goal, J = S A_g, drift = S dA_g v - hdot_goal, with kp = 0 and
+// kv its gain (the goal's "position" is h_goal, its "velocity" hdot_goal).
 #pragma once
 
 #include <Eigen/Core>
@@ -17,7 +21,7 @@ namespace hqp {
 class VectorTracking {
  public:
   using Index = Eigen::Index;
-  enum class Kind { kFramePosition, kCenterOfMass, kJoints };
+  enum class Kind { kFramePosition, kCenterOfMass, kJoints, kCentroidal };
 
   /// `select`: the frame's or CoM's world axes (0-2), or the joints' indices into q for
   /// kJoints with `v_index` their indices into v. `scale` (empty: none) is W's diagonal.
