@@ -5,6 +5,7 @@
 
 #include "bindings_model.hpp"
 #include "bindings_solver.hpp"
+#include "bindings_step.hpp"
 #include "bindings_tasks.hpp"
 #include "model.hpp"
 
@@ -15,6 +16,7 @@ NB_MODULE(_ext, m) {
   hqp::bind_solver(m);
   hqp::bind_model(m);
   hqp::bind_tasks(m);
+  hqp::bind_step(m);
   m.def(
       "check_urdf_model",
       [](const std::string& path, bool free_flyer, const Eigen::VectorXd& q,

@@ -85,6 +85,7 @@ class Hierarchy {
   /// The levels of the next solve: user levels first, then the internal final levels
   /// (metric, minimum norm). Sized with resize_levels; each filled, then finish()ed.
   std::vector<LevelData>& levels() { return levels_; }
+  const std::vector<LevelData>& levels() const { return levels_; }
   void resize_levels(std::size_t count);
   /// Solve the levels; returns an empty string on success, else the failure's message.
   std::string solve(Index n, Index user_levels);

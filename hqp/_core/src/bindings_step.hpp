@@ -1,0 +1,117 @@
+// Python bindings of the native control step (hqp._core._ext.NativeStep).
+#pragma once
+
+#include <nanobind/eigen/dense.h>
+#include <nanobind/nanobind.h>
+#include <nanobind/stl/string.h>
+#include <nanobind/stl/tuple.h>
+#include <nanobind/stl/vector.h>
+
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <tuple>
+#include <vector>
+
+#include "bindings_tasks.hpp"
+#include "control/step.hpp"
+
+namespace hqp {
+
+namespace nb = nanobind;
+
+inline void bind_step(nb::module_& m) {
+  using Frames = std::vector<std::tuple<std::string, std::string, Eigen::Matrix4d>>;
+  using Slots = std::vector<std::tuple<int, int, Eigen::Index>>;
+  nb::class_<NativeStep>(m, "NativeStep")
+      .def(
+          "__init__",
+          [](NativeStep* self, const std::string& urdf, const std::string& root,
+             const Frames& frames, Eigen::Index nv_base, const Slots& slots, int n_levels,
+             double rank_tol, bool warm_start, bool compute_sigma) {
+            std::vector<ExtraFrame> extra;
+            for (const auto& [name, parent, T] : frames) {
+              extra.push_back({name, parent,
+                               pinocchio::SE3(Eigen::Matrix3d(T.topLeftCorner<3, 3>()),
+                                              Eigen::Vector3d(T.topRightCorner<3, 1>()))});
+            }
+            auto robot = std::make_unique<RobotCore>(urdf, root, extra);
+            LayoutC layout = make_layout(robot->nv(), slots);
+            new (self) NativeStep(std::move(robot), nv_base, std::move(layout), n_levels,
+                                  Settings{rank_tol, warm_start, compute_sigma});
+          },
+          nb::arg("urdf_path"), nb::arg("root_joint"), nb::arg("extra_frames"),
+          nb::arg("nv_base"), nb::arg("slots"), nb::arg("n_levels"), nb::arg("rank_tol"),
+          nb::arg("warm_start"), nb::arg("compute_sigma"))
+      .def_prop_ro("n", &NativeStep::n)
+      .def("add_dynamics", &NativeStep::add_dynamics, nb::arg("level"), nb::arg("weight"))
+      .def("add_torque_limits", &NativeStep::add_torque_limits, nb::arg("level"),
+           nb::arg("weight"), nb::arg("tau_max"))
+      .def("add_contact", &NativeStep::add_contact, nb::arg("level"), nb::arg("weight"),
+           nb::arg("kernel"))
+      .def("add_contact_limits", &NativeStep::add_contact_limits, nb::arg("level"),
+           nb::arg("weight"), nb::arg("contact"))
+      .def(
+          "add_joint_limits",
+          [](NativeStep& s, int level, double weight, const Eigen::VectorXd& q_lower,
+             const Eigen::VectorXd& q_upper, const Eigen::VectorXd& v_max, double reserve,
+             double velocity_time, double inactive_beyond, bool acceleration_bounds,
+             const Eigen::VectorXd& A, const Eigen::VectorXd& B) {
+            JointLimitParams p{q_lower, q_upper, v_max, reserve, velocity_time, inactive_beyond,
+                               acceleration_bounds};
+            return s.add_joint_limits(level, weight, p, A, B);
+          },
+          nb::arg("level"), nb::arg("weight"), nb::arg("q_lower"), nb::arg("q_upper"),
+          nb::arg("v_max"), nb::arg("reserve"), nb::arg("velocity_time"),
+          nb::arg("inactive_beyond"), nb::arg("acceleration_bounds"), nb::arg("A"), nb::arg("B"))
+      .def("add_tracking", &NativeStep::add_tracking, nb::arg("level"), nb::arg("weight"),
+           nb::arg("kernel"))
+      .def("add_orientation", &NativeStep::add_orientation, nb::arg("level"), nb::arg("weight"),
+           nb::arg("kernel"))
+      .def(
+          "set_goal",
+          [](NativeStep& s, int handle, const Eigen::VectorXd& p, const Eigen::VectorXd& v,
+             const Eigen::VectorXd& a) { s.tracking(handle).set_goal(p, v, a); },
+          nb::arg("handle"), nb::arg("position"), nb::arg("velocity"), nb::arg("acceleration"))
+      .def(
+          "set_orientation_goal",
+          [](NativeStep& s, int handle, const Eigen::Matrix3d& R, const Eigen::Vector3d& w,
+             const Eigen::Vector3d& a) { s.orientation(handle).set_goal(R, w, a); },
+          nb::arg("handle"), nb::arg("rotation"), nb::arg("velocity"), nb::arg("acceleration"))
+      .def("set_braking", &NativeStep::set_braking, nb::arg("handle"), nb::arg("braking"))
+      .def(
+          "step",
+          [](NativeStep& s, const Eigen::VectorXd& q, const Eigen::VectorXd& v, double dt) {
+            if (q.size() != s.robot().nq() || v.size() != s.robot().nv())
+              throw std::invalid_argument("state shapes: expected (" +
+                                          std::to_string(s.robot().nq()) + "), (" +
+                                          std::to_string(s.robot().nv()) + ")");
+            if (!(dt > 0.0)) throw std::invalid_argument("dt must be > 0");
+            std::string error;
+            {
+              nb::gil_scoped_release release;
+              error = s.step(q, v, dt);
+            }
+            if (!error.empty()) throw std::runtime_error(error);
+          },
+          nb::arg("q"), nb::arg("v"), nb::arg("dt"),
+          "One control step (GIL released): model pass, rows, strict hierarchy, torques.")
+      .def_prop_ro("x", [](const NativeStep& s) { return Eigen::VectorXd(s.x()); })
+      .def_prop_ro("tau", [](const NativeStep& s) { return Eigen::VectorXd(s.tau()); })
+      .def_prop_ro("qp_count", [](const NativeStep& s) { return s.hierarchy().qp_count(); })
+      .def(
+          "levels",
+          [](const NativeStep& s) {
+            nb::list out;
+            for (int k = 0; k < s.level_count(); ++k) {
+              const LevelData& lv = s.level(k);
+              out.append(nb::make_tuple(s.level_index(k), Eigen::MatrixXd(lv.A),
+                                        Eigen::VectorXd(lv.b), Eigen::MatrixXd(lv.C),
+                                        Eigen::VectorXd(lv.lo), Eigen::VectorXd(lv.up)));
+            }
+            return out;
+          },
+          "The last step's built levels: (stack level index, A, b, C, lower, upper).");
+}
+
+}  // namespace hqp

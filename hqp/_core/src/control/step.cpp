@@ -1,0 +1,210 @@
+// The native control step; see step.hpp.
+#include "control/step.hpp"
+
+#include <cmath>
+#include <stdexcept>
+
+namespace hqp {
+
+NativeStep::NativeStep(std::unique_ptr<RobotCore> robot, Index nv_base, LayoutC layout,
+                       int n_levels, const Settings& settings)
+    : robot_(std::move(robot)), nv_base_(nv_base), layout_(std::move(layout)),
+      n_levels_(n_levels), hierarchy_(settings) {
+  if (layout_.nv != robot_->nv()) throw std::invalid_argument("layout nv differs from the robot's");
+  na_ = robot_->nv() - nv_base_;
+  n_ = layout_.n();
+  G_.setZero(robot_->nv(), n_);
+  J6_.setZero(6, robot_->nv());
+  tau_.setZero(na_);
+}
+
+int NativeStep::add(Kind kind, int level, double weight, int index, Index neq, Index nin) {
+  if (level < 0 || level >= n_levels_) throw std::invalid_argument("level out of range");
+  if (!(weight > 0.0) || !std::isfinite(weight)) throw std::invalid_argument("weight must be > 0");
+  Entry e{kind, level, std::sqrt(weight), index};
+  e.neq = neq;
+  e.nin = nin;
+  entries_.push_back(e);
+  laid_out_ = false;
+  return int(entries_.size()) - 1;
+}
+
+int NativeStep::add_dynamics(int level, double weight) {
+  return add(Kind::kDynamics, level, weight, -1, nv_base_, 0);
+}
+
+int NativeStep::add_torque_limits(int level, double weight, const Eigen::VectorXd& tau_max) {
+  if (tau_max.size() != na_) throw std::invalid_argument("tau_max: one bound per actuated joint");
+  tau_max_.push_back(tau_max);
+  return add(Kind::kTorqueLimits, level, weight, int(tau_max_.size()) - 1, 0, na_);
+}
+
+int NativeStep::add_contact(int level, double weight, const ContactKernel& kernel) {
+  contacts_.push_back(kernel);
+  return add(Kind::kContact, level, weight, int(contacts_.size()) - 1, kernel.rows(), 0);
+}
+
+int NativeStep::add_contact_limits(int level, double weight, int contact) {
+  if (contact < 0 || contact >= int(entries_.size()) || entries_[contact].kind != Kind::kContact)
+    throw std::invalid_argument("contact limits: not a contact handle");
+  const int index = entries_[contact].index;
+  return add(Kind::kContactLimits, level, weight, index, 0, contacts_[index].limit_rows());
+}
+
+int NativeStep::add_joint_limits(int level, double weight, const JointLimitParams& params,
+                                 const Eigen::VectorXd& max_acceleration,
+                                 const Eigen::VectorXd& braking) {
+  for (const Eigen::VectorXd* a : {&params.q_lower, &params.q_upper, &params.v_max,
+                                   &max_acceleration, &braking}) {
+    if (a->size() != na_) throw std::invalid_argument("joint limits: one value per actuated joint");
+  }
+  joint_limits_.push_back({params, max_acceleration, braking, Eigen::VectorXd::Zero(na_),
+                           Eigen::VectorXd::Zero(na_)});
+  return add(Kind::kJointLimits, level, weight, int(joint_limits_.size()) - 1, 0, na_);
+}
+
+int NativeStep::add_tracking(int level, double weight, const VectorTracking& kernel) {
+  tracking_.push_back(kernel);
+  return add(Kind::kTracking, level, weight, int(tracking_.size()) - 1, kernel.rows(), 0);
+}
+
+int NativeStep::add_orientation(int level, double weight, const OrientationTracking& kernel) {
+  orientation_.push_back(kernel);
+  return add(Kind::kOrientation, level, weight, int(orientation_.size()) - 1, 3, 0);
+}
+
+VectorTracking& NativeStep::tracking(int handle) {
+  if (handle < 0 || handle >= int(entries_.size()) || entries_[handle].kind != Kind::kTracking)
+    throw std::invalid_argument("not a tracking handle");
+  return tracking_[std::size_t(entries_[handle].index)];
+}
+
+OrientationTracking& NativeStep::orientation(int handle) {
+  if (handle < 0 || handle >= int(entries_.size()) || entries_[handle].kind != Kind::kOrientation)
+    throw std::invalid_argument("not an orientation handle");
+  return orientation_[std::size_t(entries_[handle].index)];
+}
+
+ContactKernel& NativeStep::contact(int handle) {
+  if (handle < 0 || handle >= int(entries_.size()) || entries_[handle].kind != Kind::kContact)
+    throw std::invalid_argument("not a contact handle");
+  return contacts_[std::size_t(entries_[handle].index)];
+}
+
+void NativeStep::set_braking(int handle, const Eigen::VectorXd& braking) {
+  if (handle < 0 || handle >= int(entries_.size()) || entries_[handle].kind != Kind::kJointLimits)
+    throw std::invalid_argument("not a joint-limits handle");
+  JointLimitEntry& j = joint_limits_[std::size_t(entries_[handle].index)];
+  if (braking.size() != na_) throw std::invalid_argument("braking: one value per actuated joint");
+  j.B = braking;
+}
+
+void NativeStep::layout_levels() {
+  // row offsets per level in entry order; empty levels are left out (as Stack.build)
+  std::vector<Index> neq(std::size_t(n_levels_), 0), nin(std::size_t(n_levels_), 0);
+  for (Entry& e : entries_) {
+    e.eq0 = neq[std::size_t(e.level)];
+    e.in0 = nin[std::size_t(e.level)];
+    neq[std::size_t(e.level)] += e.neq;
+    nin[std::size_t(e.level)] += e.nin;
+  }
+  used_.clear();
+  built_of_.assign(std::size_t(n_levels_), -1);
+  for (int k = 0; k < n_levels_; ++k) {
+    if (neq[std::size_t(k)] + nin[std::size_t(k)] == 0) continue;
+    built_of_[std::size_t(k)] = int(used_.size());
+    used_.push_back(k);
+  }
+  hierarchy_.resize_levels(used_.size() + 1);
+  auto& data = hierarchy_.levels();
+  for (std::size_t b = 0; b < used_.size(); ++b) {
+    LevelData& lv = data[b];
+    const std::size_t k = std::size_t(used_[b]);
+    lv.A.setZero(neq[k], n_);
+    lv.b.setZero(neq[k]);
+    lv.C.setZero(nin[k], n_);
+    lv.lo.setZero(nin[k]);
+    lv.up.setZero(nin[k]);
+    lv.kind = LevelKind::kUser;
+  }
+  LevelData& norm = data.back();
+  norm.A.setIdentity(n_, n_);
+  norm.b.setZero(n_);
+  norm.C.resize(0, n_);
+  norm.lo.resize(0);
+  norm.up.resize(0);
+  norm.kind = LevelKind::kNorm;
+  norm.finish();
+  norm.a_scale = 1.0;
+  laid_out_ = true;
+}
+
+std::string NativeStep::step(const Eigen::Ref<const Eigen::VectorXd>& q,
+                             const Eigen::Ref<const Eigen::VectorXd>& v, double dt) {
+  if (!laid_out_) layout_levels();
+  RobotCore& robot = *robot_;
+  robot.update(q, v);
+  contact_dynamics(robot, layout_, G_, J6_);
+  const Index nv = robot.nv();
+  auto& data = hierarchy_.levels();
+  for (const Entry& e : entries_) {
+    LevelData& lv = data[std::size_t(built_of_[std::size_t(e.level)])];
+    auto A = lv.A.middleRows(e.eq0, e.neq);
+    auto b = lv.b.segment(e.eq0, e.neq);
+    auto C = lv.C.middleRows(e.in0, e.nin);
+    auto lo = lv.lo.segment(e.in0, e.nin);
+    auto up = lv.up.segment(e.in0, e.nin);
+    switch (e.kind) {
+      case Kind::kDynamics:
+        A = G_.topRows(nv_base_);
+        b = -robot.h().head(nv_base_);
+        break;
+      case Kind::kTorqueLimits: {
+        const Eigen::VectorXd& tau = tau_max_[std::size_t(e.index)];
+        C = G_.bottomRows(na_);
+        lo = -tau - robot.h().tail(na_);
+        up = tau - robot.h().tail(na_);
+        break;
+      }
+      case Kind::kContact:
+        contacts_[std::size_t(e.index)].write(robot, A, b);
+        break;
+      case Kind::kContactLimits:
+        contacts_[std::size_t(e.index)].write_limits(robot, C, lo, up);
+        break;
+      case Kind::kJointLimits: {
+        JointLimitEntry& j = joint_limits_[std::size_t(e.index)];
+        const Index nq_base = robot.nq() - na_;
+        joint_limit_bounds(j.params, robot.q().tail(robot.nq() - nq_base), robot.v().tail(na_),
+                           j.A, j.B, dt, j.lb, j.ub);
+        C.setZero();
+        C.middleCols(nv_base_, na_).setIdentity();
+        lo = j.lb;
+        up = j.ub;
+        break;
+      }
+      case Kind::kTracking:
+        tracking_[std::size_t(e.index)].write(robot, A, b);
+        break;
+      case Kind::kOrientation:
+        orientation_[std::size_t(e.index)].write(robot, A, b);
+        break;
+    }
+    if (e.sqrt_w != 1.0) {
+      A *= e.sqrt_w;
+      b *= e.sqrt_w;
+      C *= e.sqrt_w;
+      lo *= e.sqrt_w;
+      up *= e.sqrt_w;
+    }
+  }
+  (void)nv;
+  for (std::size_t k = 0; k < used_.size(); ++k) data[k].finish();
+  const std::string error = hierarchy_.solve(n_, Index(used_.size()));
+  if (!error.empty()) return error;
+  tau_.noalias() = G_.bottomRows(na_) * hierarchy_.x();
+  tau_ += robot.h().tail(na_);
+  return std::string();
+}
+
+}  // namespace hqp
