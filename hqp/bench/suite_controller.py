@@ -5,6 +5,9 @@ Per robot (``paper-humanoid``, ``g1``, ``talos``), the same states are handed to
 - ``hqp/<algorithm>/<backend>``: :func:`hqp.control.presets.standing_controller` (both soles in
   contact, centre of mass, trunk upright, posture, torque, friction, centre-of-pressure and
   viable joint limits; ``diagnostics="residuals"``: per-task residual flags, no per-task SVDs);
+- ``hqp/step/native``: the native control step (:class:`hqp.control.native.NativeStepMirror`:
+  the same standing stack in one call into the C++ core: model pass, rows, strict hierarchy,
+  torques; no feasibility report yet);
 - ``nullspace``: :func:`hqp.control.presets.standing_nullspace_controller` (same stack, joint limits
   as the papers' activation zones; inequalities not enforced);
 - ``placo``: PlaCo's ``DynamicsSolver`` on the same task set (:mod:`hqp.bench.placo_step`).
@@ -35,12 +38,16 @@ from hqp.bench.accuracy import ExcessTracker, level_costs
 from hqp.bench.interleave import Samples, interleaved
 from hqp.bench.placo_step import PlacoStanding
 from hqp.bench.recorded import DATA_DIR, load
+from hqp.control.native import NativeStepMirror
 from hqp.control.presets import standing_controller, standing_nullspace_controller
 from hqp.model import RobotState
 from hqp.robots import load as load_robot
 from hqp.solver import ALGORITHMS, available_backends, supports
 
 ROBOTS = ("paper-humanoid", "g1", "talos")
+
+NATIVE_STEP = "hqp/step/native"
+"""The configuration of the native control step."""
 """Robots of the suite."""
 
 T0 = 1.0
@@ -74,7 +81,9 @@ def configurations(backends: Sequence[str] | None = None,
                    algorithms: Sequence[str] = ALGORITHMS) -> list[str]:
     """Return the configuration names: ``hqp/<algorithm>/<backend>``, ``nullspace``, ``placo``."""
     bk = list(backends) if backends is not None else available_backends()
-    return [f"hqp/{a}/{b}" for a in algorithms for b in bk if supports(b, a)] + [
+    native = [NATIVE_STEP] if supports("native", "basis") and (
+        backends is None or "native" in backends) else []
+    return [f"hqp/{a}/{b}" for a in algorithms for b in bk if supports(b, a)] + native + [
         "nullspace", "placo"]
 
 
@@ -90,8 +99,16 @@ class _Stepper:
         self.phases: list[dict[str, float]] = []
         self.levels: list[list[float]] = []
         self.record = False
+        self.mirror: NativeStepMirror | None = None
         if name == "placo":
             self.placo = PlacoStanding(robot, dt)
+            self.ctrl = None
+        elif name == NATIVE_STEP:
+            # the Python controller sets the goals and references once; then the native step
+            ctrl = standing_controller(robot, dt=dt, backend="native", diagnostics="residuals")
+            q, v = sts[0]
+            ctrl.step(RobotState(q, v, T0), T0)
+            self.mirror = NativeStepMirror(robot, ctrl)
             self.ctrl = None
         elif name == "nullspace":
             self.ctrl = standing_nullspace_controller(robot, dt=dt, diagnostics="residuals")
@@ -104,6 +121,8 @@ class _Stepper:
         q, v = self.states[self.i % len(self.states)]
         t = T0 + self.i * self.dt
         self.i += 1
+        if self.mirror is not None:
+            return self.mirror.step(q, v, t)
         if self.ctrl is None:
             return self.placo.step(q, v)
         cmd = self.ctrl.step(RobotState(q, v, t), t)
@@ -119,7 +138,7 @@ class _Stepper:
 def _accuracy(steppers: dict[str, _Stepper], sts: list[tuple[np.ndarray, np.ndarray]]
               ) -> tuple[dict[str, np.ndarray], dict[str, float]]:
     """Excess per level and contract excess (largest over the states) on the hqp levels."""
-    hqp_names = [n for n in steppers if n.startswith("hqp/")]
+    hqp_names = [n for n in steppers if n.startswith("hqp/") and n != NATIVE_STEP]
     if not hqp_names:
         return {}, {}
     ref_name = hqp_names[0]
@@ -128,6 +147,9 @@ def _accuracy(steppers: dict[str, _Stepper], sts: list[tuple[np.ndarray, np.ndar
     for q, v in sts:
         xs = {}
         for name, st in steppers.items():
+            if st.mirror is not None:
+                xs[name] = st.mirror.step(q, v, t)[0]
+                continue
             if st.ctrl is None:
                 continue
             st.ctrl.step(RobotState(q, v, t), t)

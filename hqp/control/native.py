@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from hqp._core import _ext as _core_ext
 from hqp.errors import HQPError
 from hqp.robots.robot import ROOT_JOINT, Robot
 from hqp.tasks.centroidal import CentroidalMomentumTask
@@ -34,12 +35,6 @@ from hqp.tasks.torque_limits import TorqueLimits
 
 class NotSupported(HQPError):
     """A task or stack state the native step does not run (yet): use the Python step."""
-
-
-def _core() -> Any:
-    from hqp._core import _ext
-
-    return _ext
 
 
 def _gains(task: Any) -> tuple[float, float, float, float]:
@@ -67,7 +62,7 @@ class NativeStepMirror:
 
     def __init__(self, robot: Robot, controller: Any, rank_tol: float = 1e-9,
                  warm_start: bool = True) -> None:
-        core = _core()
+        core = _core_ext
         stack, model, layout = controller.stack, controller.model, controller.layout
         self.dt = float(controller.dt)
         self.model = model
