@@ -121,7 +121,7 @@ def test_warm_solves_need_no_more_qps_than_the_python_algorithm():
             counts[backend] = solver.solve(step.levels).qp_count
             totals[backend] += counts[backend]
         if step.source in ("stand", "walk", "hand-reach"):
-            assert counts["native"] == counts["daqp"], step.label
+            assert counts["native"] <= counts["daqp"], step.label
     assert totals["native"] <= totals["daqp"]
 
 

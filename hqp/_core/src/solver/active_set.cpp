@@ -113,7 +113,10 @@ bool ActiveSetSolver::solve(const LevelRows& L, const CarriedRows& K, IVec& s, I
       Kh_.resize(nheld, nv);
       kh_.resize(nheld);
       for (Index j = 0; j < nheld; ++j) {
-        Kh_.row(j) = K.G.row(held_(j));
+        if (K.Z)
+          Kh_.row(j).noalias() = K.G.row(held_(j)) * (*K.Z);
+        else
+          Kh_.row(j) = K.G.row(held_(j));
         kh_(j) = wp_(j) ? K.gu(held_(j)) : K.gl(held_(j));
       }
       kqr_.compute_relative(Kh_, rank_tol);
@@ -201,7 +204,13 @@ bool ActiveSetSolver::solve(const LevelRows& L, const CarriedRows& K, IVec& s, I
     w_new_ = w;
     if (p) {
       gv_.resize(p);
-      gv_.noalias() = K.G * v;
+      if (K.Z) {
+        zv_.resize(K.Z->rows());
+        zv_.noalias() = (*K.Z) * v;
+        gv_.noalias() = K.G * zv_;
+      } else {
+        gv_.noalias() = K.G * v;
+      }
       free_.resize(p);
       for (Index i = 0; i < p; ++i) free_(i) = (w(i) == 0);
       for (Index j = 0; j < ndep; ++j) free_(dep_g_(j)) = 1;

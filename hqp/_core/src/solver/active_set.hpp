@@ -29,9 +29,13 @@ struct LevelRows {
   CVecRef lo, up, los, ups;
 };
 
+/// Rows carried from the levels above, gl <= G Z v <= gu: G over the full variables and the
+/// basis Z of the level's reduced coordinates v (nullptr: the identity). The product G Z is
+/// never formed here: held rows are projected one by one, G Z v as G (Z v).
 struct CarriedRows {
   CMatRef G;
   CVecRef gl, gu, gls, gus;
+  const MatrixXd* Z = nullptr;
 };
 
 class ActiveSetSolver {
@@ -47,6 +51,7 @@ class ActiveSetSolver {
   PivotedQR kqr_;
   LeastSquares ls_;
   MatrixXd M_, Kh_, MQ_;
+  VectorXd zv_;
   VectorXd d_, kh_, vp_, rhs_, zr_, t_, cv_, gv_, grad_, res_, mu_, tmp_;
   IVec sel_, held_, wp_, s_new_, w_new_, dep_g_, free_;
   std::vector<IVec> seen_s_, seen_w_;

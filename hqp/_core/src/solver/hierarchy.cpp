@@ -188,15 +188,11 @@ std::string Hierarchy::solve(Index n, Index user_levels) {
     slot.violated.resize(mi);
     slot.violated.setZero();
     if (!feasible) {
-      slot.Gk.resize(p, r);
       slot.Ck.resize(mi, r);
-      if (Z) {
-        slot.Gk.noalias() = G * (*Z);
+      if (Z)
         slot.Ck.noalias() = lv.C * (*Z);
-      } else {
-        slot.Gk = G;
+      else
         slot.Ck = lv.C;
-      }
       slot.gx.resize(p);
       slot.gx.noalias() = G * x_;
       slot.cx0.resize(mi);
@@ -207,7 +203,7 @@ std::string Hierarchy::solve(Index n, Index user_levels) {
       slot.gur = gu - slot.gx;
       const double scale = std::max(lv.a_scale, lv.c_scale);
       const LevelRows rows{slot.Ak, slot.bk, slot.Ck, slot.lo_r, slot.up_r, lv.los, lv.ups};
-      const CarriedRows held{slot.Gk, slot.glr, slot.gur, gls, gus};
+      const CarriedRows held{G, slot.glr, slot.gur, gls, gus, Z};
       bool y_ok = false;
       // 3a. the previous solve's active set (or the least-squares point's), verified
       if (ws) {
@@ -222,7 +218,15 @@ std::string Hierarchy::solve(Index n, Index user_levels) {
           slot.qlo.resize(mi);
           slot.qup.resize(p);
           if (mi) slot.qlo.noalias() = slot.Ck * slot.ref;
-          if (carried) slot.qup.noalias() = slot.Gk * slot.ref;
+          if (carried) {
+            if (Z) {
+              slot.zref.resize(n);
+              slot.zref.noalias() = (*Z) * slot.ref;
+              slot.qup.noalias() = G * slot.zref;
+            } else {
+              slot.qup.noalias() = G * slot.ref;
+            }
+          }
           guess_from_point(mi ? &slot.qlo : nullptr, slot.lo_r, slot.up_r, lv.los, lv.ups,
                            carried ? &slot.qup : nullptr, slot.glr, slot.gur, gls, gus,
                            -kFeasTol, slot.s, slot.w);
@@ -238,8 +242,13 @@ std::string Hierarchy::solve(Index n, Index user_levels) {
       }
       bool ok = true;
       if (!y_ok) {
-        // 3b. QP in the reduced coordinates (and the level's slacks)
+        // 3b. QP in the reduced coordinates (and the level's slacks): G Z formed here only
         ++qp_count_;
+        slot.Gk.resize(p, r);
+        if (Z)
+          slot.Gk.noalias() = G * (*Z);
+        else
+          slot.Gk = G;
         qp_point = true;
         const Index nq = r + mi;
         slot.H.resize(nq, nq);

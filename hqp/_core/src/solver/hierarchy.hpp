@@ -65,7 +65,7 @@ struct Slot {
   Index nq_mi = -1, nq_r = -1, nq_p = -1;
   // workspace
   MatrixXd Ak, Ck, Gk, Z, E, H, Cq;
-  VectorXd bk, y, xl, cx, cx0, gx, lo_r, up_r, glr, gur, ref, g, qlo, qup, v, gxl, tmp;
+  VectorXd bk, y, xl, cx, cx0, gx, lo_r, up_r, glr, gur, ref, g, qlo, qup, v, gxl, tmp, zref;
   IVec s, w, violated;
   PivotedQR fact, null_qr;
   bool has_fact = false;
