@@ -499,7 +499,7 @@ def test_last_resort_fallback_is_warned_once_per_qp_then_logged_at_debug(caplog)
     # controller calling this every step logs one warning per QP slot, not one per step.
     import logging
 
-    from hqp.solver.backend import QPBackend
+    from hqp.solver.backends import QPBackend
     from hqp.solver.hierarchy import _qp
 
     class Broken(QPBackend):

@@ -12,7 +12,7 @@ import pytest
 import hqp
 from hqp.bench.recorded import load_all
 from hqp.solver import HierarchicalSolver, Level, solve
-from hqp.solver.native_ import fast_rows
+from hqp.solver.backends.native import fast_rows
 
 STEPS = load_all()
 """Every recorded control step of hqp/bench/data (hand-reach, reach, screwgun, stand, walk)."""

@@ -80,7 +80,7 @@ CASES = [(name, backend) for name in PROBLEMS for backend in BACKENDS]
 inequality-only levels' reduced QPs (singular reduced Hessian, regularised by
 1e-11) at points far from optimal (``screwgun`` balance 0.36 instead of
 0.228, ``reach`` joint limits 2.8e-2 instead of 0); it now runs proximal-point
-iterations (:meth:`hqp.solver.quadprog_.QuadprogBackend._proximal`)."""
+iterations (:meth:`hqp.solver.backends.quadprog.QuadprogBackend._proximal`)."""
 
 
 @pytest.mark.parametrize(("name", "backend"), CASES)

@@ -33,7 +33,7 @@ from hqp.behaviors.spec import (
     Transition,
 )
 from hqp.errors import BehaviorFileError, UnknownName
-from hqp.solver.backend import known_backends
+from hqp.solver.backends import known_backends
 from hqp.tasks.base import Category
 
 LIBRARY = Path(__file__).resolve().parent / "library"

@@ -7,7 +7,7 @@
 True
 """
 
-from hqp.solver.backend import (
+from hqp.solver.backends import (
     QPBackend,
     available_backends,
     known_backends,

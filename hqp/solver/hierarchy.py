@@ -62,9 +62,9 @@ from hqp.errors import (
     UnknownName,
     check_array,
 )
-from hqp.solver import native_
+from hqp.solver.backends import native as native_
 from hqp.solver.active_set import Guess, guess_from_point, solve_guess
-from hqp.solver.backend import QPBackend, make_backend
+from hqp.solver.backends import QPBackend, make_backend
 from hqp.solver.level import CheckedLevel, Level, check_level, trusted_level
 from hqp.solver.linalg import PivotedQR as _PivotedQR
 from hqp.solver.linalg import singular_values as _singular_values

@@ -6,7 +6,7 @@ import numpy as np
 import qpsolvers
 import scipy.sparse as sp
 
-from hqp.solver.backend import QPBackend, one_sided
+from hqp.solver.backends import QPBackend, one_sided
 
 SETTINGS = {
     "eps_abs": 1e-10,

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import qpsolvers
 
-from hqp.solver.backend import QPBackend, one_sided
+from hqp.solver.backends import QPBackend, one_sided
 
 REGULARIZATION_SEQUENCE = (1e-11, 1e-9, 1e-8)
 """Relative diagonal shifts added to ``H`` (times ``max(1, max diag H)``), tried

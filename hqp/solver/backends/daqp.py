@@ -7,7 +7,7 @@ from ctypes import c_int
 import daqp
 import numpy as np
 
-from hqp.solver.backend import QPBackend
+from hqp.solver.backends import QPBackend
 
 SETTINGS = {
     "primal_tol": 1e-10,

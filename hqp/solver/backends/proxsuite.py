@@ -8,7 +8,7 @@ from collections.abc import Hashable
 import numpy as np
 import proxsuite
 
-from hqp.solver.backend import _INF, QPBackend
+from hqp.solver.backends import _INF, QPBackend
 
 EPS_ABS = 1e-9
 """Absolute primal/dual residual tolerance (the contract's cost tolerance needs ~1e-9)."""
@@ -142,7 +142,7 @@ class ProxsuiteBackend(QPBackend):
 
     def _fallback(self) -> QPBackend:
         if self._daqp is None:
-            from hqp.solver.daqp_ import DaqpBackend
+            from hqp.solver.backends.daqp import DaqpBackend
 
             self._daqp = DaqpBackend()
         return self._daqp

@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from hqp.errors import InvalidLevel, SolverFailure
-from hqp.solver.backend import QPBackend
+from hqp.solver.backends import QPBackend
 from hqp.solver.level import Level, _constant, check_level
 from hqp.solver.solution import LevelReport, Solution
 
