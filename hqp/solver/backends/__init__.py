@@ -90,7 +90,7 @@ _REGISTRY: dict[str, tuple[str, str]] = {
 """Backend name -> (module, class). Modules import their QP library lazily."""
 
 _REQUIRES = {
-    "proxsuite": "proxsuite",
+    "proxsuite": "hqp.solver.backends.proxsuite",  # pins proxsuite's portable build
     "osqp": "osqp",
     "daqp": "daqp",
     "quadprog": "quadprog",

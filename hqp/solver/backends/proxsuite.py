@@ -3,12 +3,64 @@
 from __future__ import annotations
 
 import logging
+import sys
+import types
 from collections.abc import Hashable
 
 import numpy as np
-import proxsuite
 
 from hqp.solver.backends import _INF, QPBackend
+
+PORTABLE_BUILD = "proxsuite_pywrap"
+"""The proxsuite extension hqp loads: the wheel's build without AVX kernels.
+
+The wheel ships three builds and by default loads the widest the CPU runs
+(``proxsuite_pywrap_avx512``, ``_avx2``). Their Eigen kernels peel each loop
+(dot products, matrix-vector products of the factorisation) by the address of
+the operand modulo 32 bytes, so the summation order follows where the heap
+placed ProxQP's own workspace (``veg`` vectors, ``malloc``, 16-byte aligned) and
+``x`` changes in the last bits from one process to the next (cold solves of the
+same QP differ even within a process). The portable build's 16-byte SSE2 packets
+always sit aligned on a 16-byte aligned heap: its results are bit-reproducible,
+and on the whole-body level QPs (a few dozen variables) it is as fast."""
+
+
+def _import_portable() -> types.ModuleType:
+    """Import ``proxsuite`` so that it loads :data:`PORTABLE_BUILD`.
+
+    ``proxsuite/__init__.py`` picks its build with ``instructionset.has_AVX512F()``
+    and ``has_AVX2()``; a stand-in answering ``False`` to both is in
+    ``sys.modules`` during the import only. A proxsuite imported earlier (by the
+    caller, or by qpsolvers before hqp) keeps its build, with a warning: one
+    process cannot load two builds.
+    """
+    if "proxsuite" not in sys.modules:
+        name = "proxsuite.instructionset"
+        stand_in = types.ModuleType(name)
+        stand_in.has_AVX512F = stand_in.has_AVX2 = lambda: False  # type: ignore[attr-defined]
+        real = sys.modules.get(name)
+        sys.modules[name] = stand_in
+        try:
+            import proxsuite
+        finally:
+            if real is None:
+                sys.modules.pop(name, None)
+            else:
+                sys.modules[name] = real
+        vars(proxsuite).pop("instructionset", None)
+    import proxsuite
+
+    build = proxsuite.proxqp.__name__.split(".")[1]
+    if build != PORTABLE_BUILD:
+        logger.warning(
+            "proxsuite was imported before hqp with its %s build, whose results depend on "
+            "memory alignment: the proxsuite backend is not bit-reproducible across runs "
+            "(import hqp.solver.backends.proxsuite first)", build)
+    return proxsuite
+
+
+logger = logging.getLogger(__name__)
+proxsuite = _import_portable()
 
 EPS_ABS = 1e-9
 """Absolute primal/dual residual tolerance (the contract's cost tolerance needs ~1e-9)."""
@@ -32,8 +84,6 @@ STALL_SKIP = 200
 level QPs of a control loop change little between steps, so a slot whose
 feasible set was nearly degenerate usually stays so for a while; ProxQP is
 tried again afterwards (the slot starts cold)."""
-
-logger = logging.getLogger(__name__)
 
 _SOLVED = proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED
 _MAX_ITER = proxsuite.proxqp.QPSolverOutput.PROXQP_MAX_ITER_REACHED
