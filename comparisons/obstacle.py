@@ -122,11 +122,11 @@ class Obstacle(Scenario):
 
     def simulate(self, robot: str, spec: RunSpec, duration: float, progress: Progress) -> RunResult:
         """Run one controller in MuJoCo while the obstacle moves."""
+        from hqp.model.world import Sphere, World
         from hqp.tasks.collision import ObstacleAvoidance
         from hqp.tasks.com import CoMTask
         from hqp.tasks.position import PositionTask
         from hqp.tasks.posture import PostureTask
-        from hqp.world import Sphere, World
 
         rob, model, feet = standing_setup(robot)
         origin = np.array([feet[0], feet[1], 0.0])

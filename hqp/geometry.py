@@ -1,32 +1,5 @@
-"""Plane geometry shared by the layers (support polygons of the law and of the simulator)."""
+"""Re-export of :mod:`hqp.model.geometry` (the plane convex hull), its old path."""
 
-from __future__ import annotations
+from hqp.model.geometry import monotone_chain
 
-from collections.abc import Sequence
-
-import numpy as np
-
-
-def monotone_chain(points: Sequence[tuple[float, float]]) -> np.ndarray:
-    """Counter-clockwise convex hull ``(k, 2)`` of points sorted by ``(x, y)`` (Andrew).
-
-    Collinear and repeated points are dropped; two points or fewer are returned as given.
-    """
-    pts = list(points)
-    if len(pts) <= 2:
-        return np.array(pts)
-
-    def cross(o: tuple, a: tuple, b: tuple) -> float:
-        return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
-
-    lower: list[tuple] = []
-    for q in pts:
-        while len(lower) >= 2 and cross(lower[-2], lower[-1], q) <= 0.0:
-            lower.pop()
-        lower.append(q)
-    upper: list[tuple] = []
-    for q in reversed(pts):
-        while len(upper) >= 2 and cross(upper[-2], upper[-1], q) <= 0.0:
-            upper.pop()
-        upper.append(q)
-    return np.array(lower[:-1] + upper[:-1])
+__all__ = ["monotone_chain"]

@@ -55,7 +55,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from hqp.errors import HQPError, InvalidInput, InvalidLevel, UnknownName
-from hqp.layout import ContactType
+from hqp.model.layout import ContactType
 from hqp.solver import Level
 from hqp.tasks.base import Category, Rows, Task
 from hqp.tasks.contact import ContactLimits
@@ -67,8 +67,8 @@ from hqp.tasks.reference import (  # min_jerk: also importable as hqp.stack.min_
 from hqp.tasks.tracking import TrackingTask
 
 if TYPE_CHECKING:
-    from hqp.layout import Layout
     from hqp.model import RobotModel
+    from hqp.model.layout import Layout
 
 DEFAULT_LEVELS: tuple[Category, ...] = tuple(Category)
 """Default levels: one per category, highest first."""

@@ -35,8 +35,8 @@ ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ("hqp", "comparisons")
 
 LAYERS: dict[str, tuple[str, ...]] = {
-    "package root": ("hqp", "hqp.errors", "hqp.threads", "hqp.geometry"),
-    "robot model": ("hqp.model", "hqp.layout", "hqp.world", "hqp.robots.*"),
+    "package root": ("hqp", "hqp.errors", "hqp.threads"),
+    "robot model": ("hqp.model.*", "hqp.layout", "hqp.world", "hqp.geometry", "hqp.robots.*"),
     "control primitives": ("hqp.tasks.*",),
     "solver": ("hqp.solver.*", "hqp._core.*"),
     "execution layer": ("hqp.stack", "hqp.controller", "hqp.control.*"),

@@ -201,7 +201,7 @@ def test_contacts_are_unloaded_when_a_phase_releases_them(setup):
         "goal", (3,), goal)
     behavior.update(state, 0.501, None)
     hand = behavior.tasks["hand"]
-    from hqp.layout import Layout
+    from hqp.model.layout import Layout
 
     hand.rows(ctrl.model, Layout.build(ctrl.model.nv), 1e-3, 0.502)
     behavior.update(state, 0.502, None)
@@ -287,7 +287,7 @@ def test_an_unchanged_goal_is_not_set_again_so_the_goal_ramp_of_a_new_task_survi
 
 
 def _layout(ctrl):
-    from hqp.layout import Layout
+    from hqp.model.layout import Layout
 
     return Layout.build(ctrl.model.nv)
 

@@ -3,8 +3,8 @@ import pinocchio as pin
 import pytest
 
 from hqp import HQPError, InvalidFrame
-from hqp.layout import ContactType, Layout
 from hqp.model import RobotModel
+from hqp.model.layout import ContactType, Layout
 
 
 @pytest.fixture(scope="module")

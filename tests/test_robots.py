@@ -10,7 +10,7 @@ import pytest
 
 import hqp
 import hqp.robots
-from hqp.layout import ContactType
+from hqp.model.layout import ContactType
 from hqp.robots import paper_humanoid as ph
 from hqp.robots.robot import Robot
 

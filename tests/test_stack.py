@@ -11,7 +11,7 @@ from _h5_standins import (
 )
 
 from hqp.errors import HQPError, InvalidInput, InvalidLevel, UnknownName
-from hqp.layout import ContactType, Layout
+from hqp.model.layout import ContactType, Layout
 from hqp.stack import ContactMode, Stack, min_jerk
 from hqp.tasks.base import Category
 from hqp.tasks.contact import Contact

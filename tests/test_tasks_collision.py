@@ -7,8 +7,9 @@ import pinocchio as pin
 import pytest
 
 from hqp import HQPError, InvalidFrame, InvalidGain, UnknownName
-from hqp.layout import Layout
 from hqp.model import RobotModel
+from hqp.model.layout import Layout
+from hqp.model.world import Box, Capsule, Sphere, World
 from hqp.tasks.base import Category
 from hqp.tasks.collision import (
     CapsuleProxy,
@@ -16,7 +17,6 @@ from hqp.tasks.collision import (
     SelfCollision,
     closest_parameters,
 )
-from hqp.world import Box, Capsule, Sphere, World
 
 
 @pytest.fixture(scope="module")

@@ -10,8 +10,8 @@ import pytest
 from scipy.optimize import linprog
 
 from hqp import HQPError, InvalidFrame, InvalidGain
-from hqp.layout import ContactType, Layout
 from hqp.model import RobotModel
+from hqp.model.layout import ContactType, Layout
 from hqp.tasks.base import Category
 from hqp.tasks.contact import Contact, ContactLimits, wrench_cone_local
 

@@ -7,8 +7,8 @@ import pinocchio as pin
 import pytest
 
 from hqp import HQPError, InvalidFrame
-from hqp.layout import ContactType, Layout
 from hqp.model import RobotModel
+from hqp.model.layout import ContactType, Layout
 from hqp.tasks.base import Category
 from hqp.tasks.dynamics import FloatingBaseDynamics, joint_torques, torque_map
 from hqp.tasks.torque_limits import TorqueLimits

@@ -9,8 +9,8 @@ import pinocchio as pin
 import pytest
 
 from hqp import HQPError
-from hqp.layout import ContactType, Layout
 from hqp.model import RobotModel
+from hqp.model.layout import ContactType, Layout
 from hqp.tasks.base import Rows, cross3
 from hqp.tasks.contact import Contact, wrench_cone_local
 from hqp.tasks.dynamics import FloatingBaseDynamics, generalized_contact_matrix, torque_map
@@ -164,7 +164,7 @@ def test_contact_dynamics_shared_per_update_results_independent(robot: RobotMode
 
 def test_contact_dynamics_with_slots_out_of_order(robot: RobotModel) -> None:
     """A hand-made layout whose slots are not back to back is filled slot by slot."""
-    from hqp.layout import ContactSlot
+    from hqp.model.layout import ContactSlot
 
     nv = robot.nv
     layout = Layout(nv, (ContactSlot("b", "rarm_effector_body", ContactType.POINT, nv + 6),

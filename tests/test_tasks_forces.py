@@ -5,8 +5,8 @@ import pinocchio as pin
 import pytest
 
 from hqp import HQPError, InvalidInput
-from hqp.layout import ContactType, Layout
 from hqp.model import RobotModel
+from hqp.model.layout import ContactType, Layout
 from hqp.tasks.base import Category
 from hqp.tasks.cop import CoPTask
 from hqp.tasks.effort import EffortTask

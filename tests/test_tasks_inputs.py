@@ -7,8 +7,8 @@ import pinocchio as pin
 import pytest
 
 from hqp import HQPError, InvalidFrame, InvalidGain, InvalidInput
-from hqp.layout import Layout
 from hqp.model import RobotModel
+from hqp.model.layout import Layout
 from hqp.tasks.centroidal import CentroidalMomentumTask
 from hqp.tasks.com import CoMTask
 from hqp.tasks.gaze import GazeTask

@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 
 from hqp.controller import WholeBodyController
-from hqp.layout import ContactType
 from hqp.model import RobotState
+from hqp.model.layout import ContactType
 from hqp.robots import load
 from hqp.stack import Stack
 from hqp.tasks.base import Category

@@ -7,8 +7,8 @@ import pinocchio as pin
 import pytest
 
 from hqp import HQPError, InvalidGain
-from hqp.layout import Layout
 from hqp.model import RobotModel
+from hqp.model.layout import Layout
 from hqp.tasks.base import Category
 from hqp.tasks.joint_limit_zone import JointLimitZone
 from hqp.tasks.joint_limits import JointLimits, SupportBraking, max_acceleration_from_torques

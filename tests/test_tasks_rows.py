@@ -4,8 +4,8 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from hqp.layout import ContactType, Layout
 from hqp.model import RobotModel
+from hqp.model.layout import ContactType, Layout
 from hqp.tasks.base import Category
 from hqp.tasks.centroidal import CentroidalMomentumTask
 from hqp.tasks.com import CoMTask, support_center

@@ -8,7 +8,7 @@ import pinocchio as pin
 import pytest
 
 from hqp import HQPError, InvalidGain, UnknownName
-from hqp.world import Box, Capsule, Sphere, World
+from hqp.model.world import Box, Capsule, Sphere, World
 
 
 def scene() -> World:

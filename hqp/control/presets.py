@@ -20,7 +20,7 @@ from hqp.control.nullspace.law import EIG_TOL
 from hqp.control.nullspace.resolver import NullSpaceController
 from hqp.control.servo import Controller, WholeBodyController
 from hqp.errors import InvalidGain, InvalidInput, UnknownName
-from hqp.layout import ContactType
+from hqp.model.layout import ContactType
 from hqp.stack import Stack
 from hqp.tasks.base import Category, Task
 from hqp.tasks.centroidal import CentroidalMomentumTask

@@ -23,8 +23,8 @@ from hqp.tasks.dynamics import joint_torques
 if TYPE_CHECKING:
     from hqp.control.command import TaskStatus
     from hqp.control.diagnostics import Diagnostics
-    from hqp.layout import Layout
     from hqp.model import RobotModel
+    from hqp.model.layout import Layout
     from hqp.solver import Level, Solution
     from hqp.stack import BuiltStack, Stack
 

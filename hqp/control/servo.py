@@ -29,7 +29,7 @@ from hqp.control.command import Command, FeasibilityReport
 from hqp.control.diagnostics import MODES, Diagnostics
 from hqp.control.resolver import HQPResolver, Resolver
 from hqp.errors import InvalidInput
-from hqp.layout import Layout
+from hqp.model.layout import Layout
 from hqp.stack import Stack
 from hqp.tasks.dynamics import joint_torques
 from hqp.tasks.reference import min_jerk

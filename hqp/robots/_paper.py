@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pinocchio as pin
 
-from hqp.layout import ContactType
+from hqp.model.layout import ContactType
 from hqp.robots import paper_humanoid as ph
 from hqp.robots.robot import ContactSurface, Robot, build_pinocchio_model
 

@@ -47,7 +47,7 @@ import pinocchio as pin
 
 import hqp
 from hqp.errors import HQPError, UnknownName
-from hqp.layout import ContactType
+from hqp.model.layout import ContactType
 from hqp.robots import description as desc_mod
 from hqp.robots.description import (
     ContactParameters,

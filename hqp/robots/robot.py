@@ -18,8 +18,8 @@ import numpy as np
 import pinocchio as pin
 
 from hqp.errors import HQPError, InvalidInput
-from hqp.layout import ContactType
 from hqp.model import RobotModel
+from hqp.model.layout import ContactType
 
 if TYPE_CHECKING:
     import mujoco

@@ -23,8 +23,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from hqp.errors import InvalidInput, check_array
-from hqp.geometry import monotone_chain
 from hqp.model import RobotState
+from hqp.model.geometry import monotone_chain
 from hqp.sim import convert
 
 if TYPE_CHECKING:

@@ -2,7 +2,7 @@
 
 A primitive (task) is a pure map from the updated robot state to rows over
 the decision variables ``x = [qdd | contact wrenches]`` (see
-:mod:`hqp.layout`): equality rows ``A x = b`` and/or inequality rows
+:mod:`hqp.model.layout`): equality rows ``A x = b`` and/or inequality rows
 ``lower <= C x <= upper``. It holds its goal and gains, nothing else: no
 solver handle and no cache keyed on the configuration.
 """
@@ -19,8 +19,8 @@ import numpy as np
 from hqp.errors import InvalidInput
 
 if TYPE_CHECKING:
-    from hqp.layout import Layout
     from hqp.model import RobotModel
+    from hqp.model.layout import Layout
 
 
 def cross3(a: np.ndarray, b: np.ndarray) -> np.ndarray:

@@ -13,8 +13,8 @@ from hqp.tasks.base import Category, Rows, Task
 from hqp.tasks.reference import PDReference, Trajectory, TrajectorySample, check_trajectory
 
 if TYPE_CHECKING:
-    from hqp.layout import Layout
     from hqp.model import RobotModel
+    from hqp.model.layout import Layout
 
 _COMPONENTS = {"linear": (0, 1, 2), "angular": (3, 4, 5), "all": (0, 1, 2, 3, 4, 5)}
 

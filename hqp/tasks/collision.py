@@ -2,7 +2,7 @@
 
 Robot links are approximated by capsules (:class:`CapsuleProxy`: a segment
 fixed in a robot frame, swept by a sphere); obstacles are the spheres and
-capsules of a :class:`~hqp.world.World`. The distance between two capsules
+capsules of a :class:`~hqp.model.world.World`. The distance between two capsules
 is the distance between their core segments minus both radii, computed in
 closed form (closest points ``p1 = a1 + s u1``, ``p2 = a2 + t u2``), so its
 Jacobian is smooth wherever the closest points are unique:
@@ -47,12 +47,12 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from hqp.errors import InvalidGain, InvalidInput, check_array
+from hqp.model.world import Box, Capsule, Sphere, World
 from hqp.tasks.base import Category, Rows, Task, cross3
-from hqp.world import Box, Capsule, Sphere, World
 
 if TYPE_CHECKING:
-    from hqp.layout import Layout
     from hqp.model import RobotModel
+    from hqp.model.layout import Layout
 
 _EPS = 1e-12
 

@@ -53,12 +53,12 @@ import numpy as np
 import pinocchio as pin
 
 from hqp.errors import InvalidGain, InvalidInput, check_array
-from hqp.layout import ContactType
+from hqp.model.layout import ContactType
 from hqp.tasks.base import Category, Rows, Task
 
 if TYPE_CHECKING:
-    from hqp.layout import ContactSlot, Layout
     from hqp.model import RobotModel
+    from hqp.model.layout import ContactSlot, Layout
 
 
 def _nonneg(value: float, what: str, where: str, *, allow_inf: bool = False) -> float:
@@ -116,7 +116,7 @@ def wrench_cone_local(
 class Contact(Task):
     """A surface (6D wrench) or point (3D force) contact on a robot frame.
 
-    The task's name is the name of its slot in the :class:`~hqp.layout.Layout`
+    The task's name is the name of its slot in the :class:`~hqp.model.layout.Layout`
     (build the layout from :meth:`layout_entry`).
 
     Args:

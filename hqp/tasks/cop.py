@@ -9,13 +9,13 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from hqp.errors import InvalidInput, check_array
-from hqp.layout import ContactType
+from hqp.model.layout import ContactType
 from hqp.tasks.base import Category, Rows, Task
 from hqp.tasks.reference import Trajectory, check_trajectory
 
 if TYPE_CHECKING:
-    from hqp.layout import ContactSlot, Layout
     from hqp.model import RobotModel
+    from hqp.model.layout import ContactSlot, Layout
 
 
 def support_wrench_rows(

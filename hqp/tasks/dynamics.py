@@ -1,7 +1,7 @@
 """Floating-base dynamics: the unactuated rows of the equation of motion.
 
 The equation of motion over the decision vector ``x = [qdd | f_1 | ... | f_k]``
-(:mod:`hqp.layout`) is
+(:mod:`hqp.model.layout`) is
 
     M qdd + h = S^T tau + sum_c J_c^T f_c,
 
@@ -29,12 +29,12 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from hqp.errors import InvalidInput
-from hqp.layout import ContactType
+from hqp.model.layout import ContactType
 from hqp.tasks.base import Category, Rows, Task
 
 if TYPE_CHECKING:
-    from hqp.layout import ContactSlot, Layout
     from hqp.model import RobotModel
+    from hqp.model.layout import ContactSlot, Layout
 
 
 def contact_jacobian(state: RobotModel, slot: ContactSlot, where: str = "") -> np.ndarray:

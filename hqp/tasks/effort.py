@@ -11,8 +11,8 @@ from hqp.tasks.base import Category, Rows, Task
 from hqp.tasks.dynamics import torque_map
 
 if TYPE_CHECKING:
-    from hqp.layout import Layout
     from hqp.model import RobotModel
+    from hqp.model.layout import Layout
 
 
 class EffortTask(Task):

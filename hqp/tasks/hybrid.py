@@ -9,14 +9,14 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from hqp.errors import InvalidInput, check_array
-from hqp.layout import ContactType
+from hqp.model.layout import ContactType
 from hqp.tasks.base import Category, Rows, cross3
 from hqp.tasks.pose import PoseTask
 from hqp.tasks.tracking import TaskKinematics
 
 if TYPE_CHECKING:
-    from hqp.layout import Layout
     from hqp.model import RobotModel
+    from hqp.model.layout import Layout
 
 WRENCH_AXES = ("fx", "fy", "fz", "tx", "ty", "tz")
 """Names of the wrench components of a contact slot (world axes, at the frame origin)."""

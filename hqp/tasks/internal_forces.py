@@ -11,8 +11,8 @@ from hqp.errors import InvalidInput, check_array
 from hqp.tasks.base import Category, Rows, Task, cross3
 
 if TYPE_CHECKING:
-    from hqp.layout import ContactSlot, Layout
     from hqp.model import RobotModel
+    from hqp.model.layout import ContactSlot, Layout
 
 COMPONENTS = (
     "tension",

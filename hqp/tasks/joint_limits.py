@@ -89,8 +89,8 @@ from hqp.errors import InvalidGain, check_array
 from hqp.tasks.base import Category, Rows, Task
 
 if TYPE_CHECKING:
-    from hqp.layout import Layout
     from hqp.model import RobotModel
+    from hqp.model.layout import Layout
 
 
 def max_acceleration_from_torques(

@@ -37,8 +37,8 @@ from hqp.tasks.reference import (
 )
 
 if TYPE_CHECKING:
-    from hqp.layout import Layout
     from hqp.model import RobotModel
+    from hqp.model.layout import Layout
 
 AXIS_NAMES = {"x": 0, "y": 1, "z": 2}
 

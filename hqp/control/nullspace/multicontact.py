@@ -18,13 +18,13 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from hqp.control.nullspace.law import PHI_TOL, LawSolution
-from hqp.layout import ContactType
+from hqp.model.layout import ContactType
 from hqp.tasks.base import Category
 from hqp.tasks.dynamics import contact_jacobian
 
 if TYPE_CHECKING:
-    from hqp.layout import Layout
     from hqp.model import RobotModel
+    from hqp.model.layout import Layout
     from hqp.stack import BuiltStack, Stack
 
 

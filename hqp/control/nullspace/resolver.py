@@ -34,8 +34,8 @@ from hqp.tasks.base import Category
 if TYPE_CHECKING:
     from hqp.control.command import TaskStatus
     from hqp.control.diagnostics import Diagnostics
-    from hqp.layout import Layout
     from hqp.model import RobotModel
+    from hqp.model.layout import Layout
     from hqp.stack import BuiltStack
     from hqp.tasks.base import Task
 

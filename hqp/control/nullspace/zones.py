@@ -17,8 +17,8 @@ import numpy as np
 
 from hqp.control.nullspace.law import LawSolution
 from hqp.control.nullspace.multicontact import LawProblem
-from hqp.geometry import monotone_chain
-from hqp.layout import ContactType
+from hqp.model.geometry import monotone_chain
+from hqp.model.layout import ContactType
 
 if TYPE_CHECKING:
     from hqp.model import RobotModel
