@@ -163,11 +163,11 @@ class Task(abc.ABC):
         self.weight = float(weight)
 
     @abc.abstractmethod
-    def rows(self, state: RobotModel, layout: Layout, dt: float, t: float) -> Rows:
+    def rows(self, model: RobotModel, layout: Layout, dt: float, t: float) -> Rows:
         """Rows of the task at the updated state.
 
         Args:
-            state: Robot model after :meth:`RobotModel.update` for this step.
+            model: Robot model after :meth:`RobotModel.update` for this step.
             layout: Decision-variable layout.
             dt: Control period [s].
             t: Time [s].

@@ -129,12 +129,12 @@ class CentroidalMomentumTask(Task):
         """The momentum trajectory being followed, if any."""
         return self._trajectory
 
-    def value(self, state: RobotModel) -> np.ndarray:
+    def value(self, model: RobotModel) -> np.ndarray:
         """Return the selected momentum ``S A_g v`` ``(k,)``."""
-        return state.centroidal_matrix[self.components] @ state.v
+        return model.centroidal_matrix[self.components] @ model.v
 
     def kinematics(
-        self, state: RobotModel, t: float = 0.0
+        self, model: RobotModel, t: float = 0.0
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Return ``(e, J, drift)``: ``e = S h - h_goal``, ``de/dt = J qdd + drift``.
 
@@ -152,20 +152,20 @@ class CentroidalMomentumTask(Task):
         else:
             goal = self._goal
         c = self.components
-        A = state.centroidal_matrix[c]
-        drift = state.centroidal_drift[c] - goal.velocity
-        return A @ state.v - goal.position, A, drift
+        A = model.centroidal_matrix[c]
+        drift = model.centroidal_drift[c] - goal.velocity
+        return A @ model.v - goal.position, A, drift
 
-    def rows(self, state: RobotModel, layout: Layout, dt: float, t: float) -> Rows:
+    def rows(self, model: RobotModel, layout: Layout, dt: float, t: float) -> Rows:
         """Equality rows ``[S A_g | 0] x = sat(-gain (S h - h_goal)) + hdot_goal - S dA_g v``.
 
         Raises:
             InvalidInput: A layout that does not match the robot.
 
         """
-        if layout.nv != state.nv:
-            raise InvalidInput(f"{self.where()}: layout nv={layout.nv}, robot nv={state.nv}")
-        e, J, drift = self.kinematics(state, t)
+        if layout.nv != model.nv:
+            raise InvalidInput(f"{self.where()}: layout nv={layout.nv}, robot nv={model.nv}")
+        e, J, drift = self.kinematics(model, t)
         # kp = 0: the feedback is -kv * (h - h_goal), saturated at max_rate.
         a = self.reference.feedback(np.zeros_like(e), e)
         A = layout.zeros(len(self.components))

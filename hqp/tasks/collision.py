@@ -230,22 +230,22 @@ def _distance(s1: _Segment, s2: _Segment, nv: int) -> Distance:
     return Distance(dist - s1.radius - s2.radius, J, n_rdot, drift, p1, p2)
 
 
-def _robot_segment(state: RobotModel, proxy: CapsuleProxy, where: str) -> _Segment:
-    state.frame_id(proxy.frame, where)
-    T = state.frame_placement(proxy.frame)
+def _robot_segment(model: RobotModel, proxy: CapsuleProxy, where: str) -> _Segment:
+    model.frame_id(proxy.frame, where)
+    T = model.frame_placement(proxy.frame)
     R, o = T.rotation, T.translation
     a = o + R @ proxy.point_a
     u = R @ (proxy.point_b - proxy.point_a)
-    v6 = state.frame_velocity(proxy.frame)
+    v6 = model.frame_velocity(proxy.frame)
     return _Segment(
         a=a,
         u=u,
         u_dot=cross3(v6[3:], u),
         radius=proxy.radius,
         origin=o.copy(),
-        J6=state.frame_jacobian(proxy.frame),
+        J6=model.frame_jacobian(proxy.frame),
         v6=v6.copy(),
-        a6=state.frame_drift(proxy.frame).copy(),
+        a6=model.frame_drift(proxy.frame).copy(),
     )
 
 
@@ -295,14 +295,14 @@ class _DistanceTask(Task):
         self.pair_names: tuple[str, ...] = ()
         """Names ``"<a>|<b>"`` of the rows' pairs at the last :meth:`rows`."""
 
-    def _pairs(self, state: RobotModel) -> list[tuple[str, _Segment, _Segment]]:
+    def _pairs(self, model: RobotModel) -> list[tuple[str, _Segment, _Segment]]:
         raise NotImplementedError
 
-    def distances(self, state: RobotModel) -> list[Distance]:
-        """Distances of the pairs at ``state`` (order of the rows)."""
-        return [_distance(s1, s2, state.nv) for _, s1, s2 in self._pairs(state)]
+    def distances(self, model: RobotModel) -> list[Distance]:
+        """Distances of the pairs at ``model`` (order of the rows)."""
+        return [_distance(s1, s2, model.nv) for _, s1, s2 in self._pairs(model)]
 
-    def rows(self, state: RobotModel, layout: Layout, dt: float, t: float) -> Rows:
+    def rows(self, model: RobotModel, layout: Layout, dt: float, t: float) -> Rows:
         """One inequality row per pair: ``J_d qdd >= kv (d_dot_min - d_dot) - drift``.
 
         Raises:
@@ -310,7 +310,7 @@ class _DistanceTask(Task):
             InvalidGain: ``dt`` not positive when ``kv`` is ``None``.
 
         """
-        pairs = self._pairs(state)
+        pairs = self._pairs(model)
         if self.kv is None and not (np.isfinite(dt) and dt > 0.0):
             raise InvalidGain(f"{self.where()}: dt must be > 0, got {dt}")
         kv = 1.0 / dt if self.kv is None else self.kv
@@ -319,8 +319,8 @@ class _DistanceTask(Task):
         lower = np.full(m, -np.inf)
         margins = np.zeros(m)
         for i, (_, s1, s2) in enumerate(pairs):
-            dist = _distance(s1, s2, state.nv)
-            C[i, : state.nv] = dist.jacobian
+            dist = _distance(s1, s2, model.nv)
+            C[i, : model.nv] = dist.jacobian
             margins[i] = dist.d - self.d_safe
             if dist.d < self.d_influence:
                 d_dot_min = -self.xi * (dist.d - self.d_safe) / (self.d_influence - self.d_safe)
@@ -392,12 +392,12 @@ class ObstacleAvoidance(_DistanceTask):
             )
         return obstacle
 
-    def _pairs(self, state: RobotModel) -> list[tuple[str, _Segment, _Segment]]:
+    def _pairs(self, model: RobotModel) -> list[tuple[str, _Segment, _Segment]]:
         if self.obstacles is None:
             selected = [o for o in self.world if not isinstance(o, Box)]
         else:
             selected = [self._obstacle(n) for n in self.obstacles]
-        robot = [(p, _robot_segment(state, p, self.where())) for p in self.proxies]
+        robot = [(p, _robot_segment(model, p, self.where())) for p in self.proxies]
         return [
             (f"{p.name}|{o.name}", seg, _obstacle_segment(o)) for p, seg in robot for o in selected
         ]
@@ -444,12 +444,12 @@ class SelfCollision(_DistanceTask):
                 )
         self.pairs = tuple(pairs)
 
-    def _pairs(self, state: RobotModel) -> list[tuple[str, _Segment, _Segment]]:
+    def _pairs(self, model: RobotModel) -> list[tuple[str, _Segment, _Segment]]:
         return [
             (
                 f"{a.name}|{b.name}",
-                _robot_segment(state, a, self.where()),
-                _robot_segment(state, b, self.where()),
+                _robot_segment(model, a, self.where()),
+                _robot_segment(model, b, self.where()),
             )
             for a, b in self.pairs
         ]

@@ -17,7 +17,7 @@ if TYPE_CHECKING:
 
 
 def support_center(
-    state: RobotModel, frames: Sequence[str], where: str = "support_center"
+    model: RobotModel, frames: Sequence[str], where: str = "support_center"
 ) -> np.ndarray:
     """Mean of the world positions of ``frames`` ``(3,)`` [m], e.g. the centre of the feet.
 
@@ -28,7 +28,7 @@ def support_center(
     """
     if not frames:
         raise InvalidInput(f"{where}: no frames given")
-    return np.mean([state.data.oMf[state.frame_id(f, where)].translation for f in frames], axis=0)
+    return np.mean([model.data.oMf[model.frame_id(f, where)].translation for f in frames], axis=0)
 
 
 class CoMTask(VectorTrackingTask):
@@ -75,7 +75,7 @@ class CoMTask(VectorTrackingTask):
         self.goal_size = 2 if self.horizontal else 3
         self._sel = slice(0, self.goal_size)
 
-    def measure(self, state: RobotModel) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    def measure(self, model: RobotModel) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """``(x, xd, J, dJ v)`` of the selected centre-of-gravity coordinates."""
         s = self._sel
-        return state.com[s], state.com_velocity[s], state.com_jacobian[s], state.com_drift[s]
+        return model.com[s], model.com_velocity[s], model.com_jacobian[s], model.com_drift[s]

@@ -246,12 +246,12 @@ class Contact(Task):
         self._slot_layout, self._slot_key, self._slot = layout, key, slot
         return slot
 
-    def _check_frame(self, state: RobotModel) -> None:
+    def _check_frame(self, model: RobotModel) -> None:
         """Raise :class:`InvalidFrame` (naming the primitive) if the frame is not in the model."""
-        if not state.has_frame(self.frame):
-            state.frame_id(self.frame, self.where())
+        if not model.has_frame(self.frame):
+            model.frame_id(self.frame, self.where())
 
-    def rows(self, state: RobotModel, layout: Layout, dt: float, t: float) -> Rows:
+    def rows(self, model: RobotModel, layout: Layout, dt: float, t: float) -> Rows:
         """Physics rows ``(size, n)``: the contact condition, or ``f_c = 0`` when inactive.
 
         Raises:
@@ -260,19 +260,19 @@ class Contact(Task):
 
         """
         slot = self.slot(layout)
-        self._check_frame(state)
+        self._check_frame(model)
         k = self.kind.value
         A = np.zeros((k, layout.n))
         if not self.active:
             A[:, slot.slice] = np.eye(k)
             self._error = np.zeros(0)
             return Rows(A=A, b=np.zeros(k))
-        A[:, : layout.nv] = state.frame_jacobian(self.frame)[:k]
-        b = -state.frame_drift(self.frame)[:k]  # a new array
+        A[:, : layout.nv] = model.frame_jacobian(self.frame)[:k]
+        b = -model.frame_drift(self.frame)[:k]  # a new array
         if self.kd > 0.0:
-            b -= self.kd * state.frame_velocity(self.frame)[:k]
+            b -= self.kd * model.frame_velocity(self.frame)[:k]
         if self.kp > 0.0:
-            T = state.frame_placement(self.frame)
+            T = model.frame_placement(self.frame)
             if self.reference is None:
                 self.reference = T.copy()
             e = np.concatenate(
@@ -285,11 +285,11 @@ class Contact(Task):
             self._error = np.zeros(0)
         return Rows(A=A, b=b)
 
-    def rotation(self, state: RobotModel) -> np.ndarray:
+    def rotation(self, model: RobotModel) -> np.ndarray:
         """Rotation ``R_world_contact`` ``(3, 3)`` of the contact frame."""
-        return state.frame_placement(self.frame).rotation
+        return model.frame_placement(self.frame).rotation
 
-    def limit_rows(self, state: RobotModel, layout: Layout) -> Rows:
+    def limit_rows(self, model: RobotModel, layout: Layout) -> Rows:
         """CONTACT_LIMITS inequality rows over ``x`` (17 for a surface, 5 for a point).
 
         Order: friction pyramid (4), normal force ``f_min <= f_z <= f_max`` (1),
@@ -302,8 +302,8 @@ class Contact(Task):
 
         """
         slot = self.slot(layout)
-        self._check_frame(state)
-        Rt = state.frame_placement(self.frame).rotation.T
+        self._check_frame(model)
+        Rt = model.frame_placement(self.frame).rotation.T
         local = self.local_limits()
         m = local.shape[0]
         C = np.zeros((m, layout.n))
@@ -338,11 +338,11 @@ class Contact(Task):
             self._cone_key, self._cone = key, local
         return self._cone
 
-    def local_wrench(self, state: RobotModel, layout: Layout, x: np.ndarray) -> np.ndarray:
+    def local_wrench(self, model: RobotModel, layout: Layout, x: np.ndarray) -> np.ndarray:
         """Return the slot of a solution in the contact frame's axes ``(size,)``."""
         slot = self.slot(layout)
         x = check_array(x, (layout.n,), f"{self.where()}: x")
-        R = self.rotation(state)
+        R = self.rotation(model)
         f = x[slot.slice]
         out = R.T @ f[:3]
         return out if self.size == 3 else np.concatenate([out, R.T @ f[3:]])
@@ -369,6 +369,6 @@ class ContactLimits(Task):
         super().__init__(name or f"{contact.name}_limits", weight)
         self.contact = contact
 
-    def rows(self, state: RobotModel, layout: Layout, dt: float, t: float) -> Rows:
+    def rows(self, model: RobotModel, layout: Layout, dt: float, t: float) -> Rows:
         """See :meth:`Contact.limit_rows`."""
-        return self.contact.limit_rows(state, layout)
+        return self.contact.limit_rows(model, layout)

@@ -19,7 +19,7 @@ if TYPE_CHECKING:
 
 
 def support_wrench_rows(
-    state: RobotModel, slots: Sequence[ContactSlot], n: int, height: float
+    model: RobotModel, slots: Sequence[ContactSlot], n: int, height: float
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Linear maps from ``x`` to ``F_z``, and to the CoP numerators on the plane ``z = height``.
 
@@ -40,7 +40,7 @@ def support_wrench_rows(
     nx = np.zeros(n)
     ny = np.zeros(n)
     for slot in slots:
-        p = state.frame_placement(slot.frame).translation
+        p = model.frame_placement(slot.frame).translation
         i = slot.start
         fz[i + 2] = 1.0
         # h F_x - (tau_y + p_z F_x - p_x F_z)
@@ -161,14 +161,14 @@ class CoPTask(Task):
         except InvalidInput as exc:
             raise InvalidInput(f"{self.where()}: {exc}") from None
 
-    def plane_height(self, state: RobotModel, layout: Layout) -> float:
+    def plane_height(self, model: RobotModel, layout: Layout) -> float:
         """Return the ground height ``h`` [m] used at this state."""
         if self.height is not None:
             return self.height
         slots = self._slots(layout)
-        return float(np.mean([state.frame_placement(s.frame).translation[2] for s in slots]))
+        return float(np.mean([model.frame_placement(s.frame).translation[2] for s in slots]))
 
-    def rows(self, state: RobotModel, layout: Layout, dt: float, t: float) -> Rows:
+    def rows(self, model: RobotModel, layout: Layout, dt: float, t: float) -> Rows:
         """Equality rows ``(2, n)`` over the support's wrench slots, target zero.
 
         Raises:
@@ -178,14 +178,14 @@ class CoPTask(Task):
         """
         slots = self._slots(layout)
         for s in slots:
-            state.frame_id(s.frame, self.where())
+            model.frame_id(s.frame, self.where())
         goal = self.goal_at(t)
         self._last_goal = goal
-        fz, nx, ny = support_wrench_rows(state, slots, layout.n, self.plane_height(state, layout))
+        fz, nx, ny = support_wrench_rows(model, slots, layout.n, self.plane_height(model, layout))
         A = self._scale * np.vstack([goal[0] * fz - nx, goal[1] * fz - ny])
         return Rows(A=A, b=np.zeros(2))
 
-    def measure(self, state: RobotModel, layout: Layout, x: object) -> np.ndarray:
+    def measure(self, model: RobotModel, layout: Layout, x: object) -> np.ndarray:
         """CoP ``(2,)`` [m] of a solution ``x`` (its wrenches); stored for :meth:`error`.
 
         Raises:
@@ -194,7 +194,7 @@ class CoPTask(Task):
         """
         xv = check_array(x, (layout.n,), f"{self.where()}: x")
         fz, nx, ny = support_wrench_rows(
-            state, self._slots(layout), layout.n, self.plane_height(state, layout)
+            model, self._slots(layout), layout.n, self.plane_height(model, layout)
         )
         F = float(fz @ xv)
         if F <= 0.0:

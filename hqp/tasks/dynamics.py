@@ -37,11 +37,11 @@ if TYPE_CHECKING:
     from hqp.model.layout import ContactSlot, Layout
 
 
-def contact_jacobian(state: RobotModel, slot: ContactSlot, where: str = "") -> np.ndarray:
+def contact_jacobian(model: RobotModel, slot: ContactSlot, where: str = "") -> np.ndarray:
     """Jacobian whose transpose maps a contact slot's wrench to generalized forces.
 
     Args:
-        state: Updated robot model.
+        model: Updated robot model.
         slot: The contact slot (surface: wrench ``[force, torque]`` at the frame
             origin, world axes; point: force, world axes).
         where: Prefix of error messages (e.g. the primitive's name).
@@ -55,18 +55,18 @@ def contact_jacobian(state: RobotModel, slot: ContactSlot, where: str = "") -> n
 
     """
     if where:
-        state.frame_id(slot.frame, where)
-    J = state.frame_jacobian(slot.frame)
+        model.frame_id(slot.frame, where)
+    J = model.frame_jacobian(slot.frame)
     return J if slot.kind is ContactType.SURFACE else J[:3]
 
 
-def _check_layout(state: RobotModel, layout: Layout, where: str) -> None:
-    if layout.nv != state.nv:
-        raise InvalidInput(f"{where}: layout has nv={layout.nv}, robot has nv={state.nv}")
+def _check_layout(model: RobotModel, layout: Layout, where: str) -> None:
+    if layout.nv != model.nv:
+        raise InvalidInput(f"{where}: layout has nv={layout.nv}, robot has nv={model.nv}")
 
 
 def _contact_columns(
-    state: RobotModel, layout: Layout, out: np.ndarray, rows: slice, where: str
+    model: RobotModel, layout: Layout, out: np.ndarray, rows: slice, where: str
 ) -> None:
     """Write ``-J_c[:, rows]^T`` of every contact slot into its columns of ``out`` ``(r, n)``.
 
@@ -75,12 +75,12 @@ def _contact_columns(
     """
     for slot in layout.contacts:
         if where:
-            state.frame_id(slot.frame, where)
+            model.frame_id(slot.frame, where)
         k = slot.kind.value
-        out[:, slot.start : slot.start + k] = -state.frame_jacobian(slot.frame)[:k, rows].T
+        out[:, slot.start : slot.start + k] = -model.frame_jacobian(slot.frame)[:k, rows].T
 
 
-def generalized_contact_matrix(state: RobotModel, layout: Layout, where: str = "") -> np.ndarray:
+def generalized_contact_matrix(model: RobotModel, layout: Layout, where: str = "") -> np.ndarray:
     """``[J_1^T | ... | J_k^T]`` ``(nv, n - nv)``: generalized force of the contact slots.
 
     Raises:
@@ -88,15 +88,15 @@ def generalized_contact_matrix(state: RobotModel, layout: Layout, where: str = "
         InvalidInput: The layout does not match the robot.
 
     """
-    _check_layout(state, layout, where or "generalized_contact_matrix")
-    JT = np.zeros((state.nv, layout.n - layout.nv))
+    _check_layout(model, layout, where or "generalized_contact_matrix")
+    JT = np.zeros((model.nv, layout.n - layout.nv))
     for slot in layout.contacts:
         cols = slice(slot.start - layout.nv, slot.start - layout.nv + slot.size)
-        JT[:, cols] = contact_jacobian(state, slot, where).T
+        JT[:, cols] = contact_jacobian(model, slot, where).T
     return JT
 
 
-def contact_dynamics_matrix(state: RobotModel, layout: Layout, where: str = "") -> np.ndarray:
+def contact_dynamics_matrix(model: RobotModel, layout: Layout, where: str = "") -> np.ndarray:
     """``[M | -J_1^T ... -J_k^T]`` ``(nv, n)``: the equation of motion's map of ``x``.
 
     ``M qdd - sum_c J_c^T f_c = S^T tau - h``; its first ``nv_base`` rows are the
@@ -109,47 +109,47 @@ def contact_dynamics_matrix(state: RobotModel, layout: Layout, where: str = "") 
         InvalidInput: The layout does not match the robot.
 
     """
-    _check_layout(state, layout, where or "contact_dynamics_matrix")
+    _check_layout(model, layout, where or "contact_dynamics_matrix")
     key = ("contact_dynamics_matrix", id(layout))
-    hit = state.per_update(key, lambda: _contact_dynamics(state, layout, where))
+    hit = model.per_update(key, lambda: _contact_dynamics(model, layout, where))
     if hit[0] is not layout:  # an id reused by another layout: recompute
-        hit = _contact_dynamics(state, layout, where)
+        hit = _contact_dynamics(model, layout, where)
     return hit[1]
 
 
 def _contact_dynamics(
-    state: RobotModel, layout: Layout, where: str
+    model: RobotModel, layout: Layout, where: str
 ) -> tuple[Layout, np.ndarray]:
     nv = layout.nv
-    blocks = [state.M]
+    blocks = [model.M]
     start = nv
     for slot in layout.contacts:
         if slot.start != start:  # slots not back to back (a hand-made layout): fill in place
             blocks = []
             break
         if where:
-            state.frame_id(slot.frame, where)
+            model.frame_id(slot.frame, where)
         k = slot.size
-        blocks.append(-state.frame_jacobian(slot.frame)[:k].T)
+        blocks.append(-model.frame_jacobian(slot.frame)[:k].T)
         start += k
     if blocks and start == layout.n:
         G = np.concatenate(blocks, axis=1)
     else:
         G = np.zeros((nv, layout.n))
-        G[:, :nv] = state.M
-        _contact_columns(state, layout, G, slice(None), where)
+        G[:, :nv] = model.M
+        _contact_columns(model, layout, G, slice(None), where)
     G.flags.writeable = False
     return layout, G
 
 
-def torque_map(state: RobotModel, layout: Layout, where: str = "") -> tuple[np.ndarray, np.ndarray]:
+def torque_map(model: RobotModel, layout: Layout, where: str = "") -> tuple[np.ndarray, np.ndarray]:
     """Actuated torques as an affine map of ``x``: ``tau = T x + t0``.
 
     ``tau = S (M qdd + h - sum_c J_c^T f_c)``, so ``T = S [M | -J_1^T ... -J_k^T]``
     ``(na, n)`` and ``t0 = S h`` ``(na,)`` [N m].
 
     Args:
-        state: Updated robot model.
+        model: Updated robot model.
         layout: Decision-variable layout.
         where: Prefix of error messages.
 
@@ -161,15 +161,15 @@ def torque_map(state: RobotModel, layout: Layout, where: str = "") -> tuple[np.n
         InvalidInput: The layout does not match the robot.
 
     """
-    act = state.actuated
-    return contact_dynamics_matrix(state, layout, where)[act].copy(), state.h[act].copy()
+    act = model.actuated
+    return contact_dynamics_matrix(model, layout, where)[act].copy(), model.h[act].copy()
 
 
-def joint_torques(state: RobotModel, layout: Layout, x: np.ndarray) -> np.ndarray:
+def joint_torques(model: RobotModel, layout: Layout, x: np.ndarray) -> np.ndarray:
     """Actuated joint torques of a solution: ``tau = S (M qdd + h - sum_c J_c^T f_c)``.
 
     Args:
-        state: Robot model updated at the state the solution was computed for.
+        model: Robot model updated at the state the solution was computed for.
         layout: Decision-variable layout.
         x: Solution ``(n,)`` ``[qdd | f_1 | ... | f_k]``.
 
@@ -183,9 +183,9 @@ def joint_torques(state: RobotModel, layout: Layout, x: np.ndarray) -> np.ndarra
     from hqp.errors import check_array
 
     x = check_array(x, (layout.n,), "joint_torques: x")
-    act = state.actuated
+    act = model.actuated
     # [M | -J_c^T] of the step, usually already built by the dynamics and torque-limit rows.
-    return contact_dynamics_matrix(state, layout)[act].dot(x) + state.h[act]
+    return contact_dynamics_matrix(model, layout)[act].dot(x) + model.h[act]
 
 
 class FloatingBaseDynamics(Task):
@@ -207,7 +207,7 @@ class FloatingBaseDynamics(Task):
     def __init__(self, name: str = "dynamics", weight: float = 1.0) -> None:
         super().__init__(name, weight)
 
-    def rows(self, state: RobotModel, layout: Layout, dt: float, t: float) -> Rows:
+    def rows(self, model: RobotModel, layout: Layout, dt: float, t: float) -> Rows:
         """Return the unactuated rows ``(6, n)`` (none on a fixed base).
 
         Raises:
@@ -215,13 +215,13 @@ class FloatingBaseDynamics(Task):
             InvalidInput: The layout does not match the robot.
 
         """
-        nb = state.nv_base
+        nb = model.nv_base
         if nb == 0:
-            _check_layout(state, layout, self.where())
+            _check_layout(model, layout, self.where())
             return Rows()
-        G = contact_dynamics_matrix(state, layout, self.where())
-        return Rows(A=G[:nb].copy(), b=-state.h[:nb])
+        G = contact_dynamics_matrix(model, layout, self.where())
+        return Rows(A=G[:nb].copy(), b=-model.h[:nb])
 
-    def torques(self, state: RobotModel, layout: Layout, x: np.ndarray) -> np.ndarray:
+    def torques(self, model: RobotModel, layout: Layout, x: np.ndarray) -> np.ndarray:
         """Actuated torques of a solution (see :func:`joint_torques`)."""
-        return joint_torques(state, layout, x)
+        return joint_torques(model, layout, x)

@@ -50,7 +50,7 @@ class EffortTask(Task):
         inv = np.where(ok, 1.0 / np.where(ok, lim, 1.0), 1.0)
         self._w = inv if normalize else np.ones(robot.na)
 
-    def rows(self, state: RobotModel, layout: Layout, dt: float, t: float) -> Rows:
+    def rows(self, model: RobotModel, layout: Layout, dt: float, t: float) -> Rows:
         """Equality rows ``W T x = -W t0`` ``(na, n)`` (target: zero torque).
 
         Raises:
@@ -58,9 +58,9 @@ class EffortTask(Task):
             InvalidFrame: A contact frame not in the model.
 
         """
-        if layout.nv != state.nv or self._w.shape[0] != state.na:
+        if layout.nv != model.nv or self._w.shape[0] != model.na:
             raise InvalidInput(f"{self.where()}: layout or robot does not match the task's robot")
-        T, t0 = torque_map(state, layout, self.where())
+        T, t0 = torque_map(model, layout, self.where())
         return Rows(A=self._w[:, None] * T, b=-self._w * t0)
 
     def error(self) -> np.ndarray:
@@ -94,7 +94,7 @@ class ForceRegularization(Task):
         self._scale = 1.0 / (robot.mass * float(np.linalg.norm(robot.gravity_vector)))
         self._rows: tuple[tuple[int, int], Rows] | None = None
 
-    def rows(self, state: RobotModel, layout: Layout, dt: float, t: float) -> Rows:
+    def rows(self, model: RobotModel, layout: Layout, dt: float, t: float) -> Rows:
         """Equality rows ``(n - nv, n)``: every contact component divided by ``m g``, target 0.
 
         They depend on the layout only: built once per layout and reused (read-only).

@@ -91,20 +91,20 @@ class GazeTask(VectorGoalTask):
         self.axis = a
         self._P = np.vstack([u, cross3(a, u)])  # rows u, w
 
-    def value(self, state: RobotModel) -> np.ndarray:
+    def value(self, model: RobotModel) -> np.ndarray:
         """Return the point 1 m ahead on the gaze ray ``(3,)`` [m] (start of :meth:`move_to`)."""
-        M = state.frame_placement(self.frame)
+        M = model.frame_placement(self.frame)
         return M.translation + M.rotation @ self.axis
 
-    def kinematics(self, state: RobotModel, t: float = 0.0) -> TaskKinematics:
+    def kinematics(self, model: RobotModel, t: float = 0.0) -> TaskKinematics:
         """Image coordinates of the target and their derivatives ``(2,)``, ``(2, nv)``."""
         goal = self.goal_at(t)
         g, dg, ddg = goal.position, goal.velocity, goal.acceleration
-        M = state.frame_placement(self.frame)
+        M = model.frame_placement(self.frame)
         R, o = M.rotation, M.translation
-        J = state.frame_jacobian(self.frame)
-        vel = state.frame_velocity(self.frame)
-        acc = state.frame_drift(self.frame)
+        J = model.frame_jacobian(self.frame)
+        vel = model.frame_velocity(self.frame)
+        acc = model.frame_drift(self.frame)
         do, w = vel[:3], vel[3:]
         r = g - o
         dr = dg - do

@@ -125,9 +125,9 @@ class HybridTask(PoseTask):
         ang = self._angular if self._surface else np.zeros(0, dtype=int)
         return self._linear, ang
 
-    def kinematics(self, state: RobotModel, t: float = 0.0) -> TaskKinematics:
+    def kinematics(self, model: RobotModel, t: float = 0.0) -> TaskKinematics:
         """Return the selected translation and world-axes rotation rows (class docstring)."""
-        full = super().kinematics(state, t)
+        full = super().kinematics(model, t)
         lin, ang = self.motion_axes()
         if len(ang) == 0:
             return TaskKinematics(
@@ -157,7 +157,7 @@ class HybridTask(PoseTask):
         """Return the number of motion-controlled translation rows leading :meth:`kinematics`."""
         return len(self._linear)
 
-    def rows(self, state: RobotModel, layout: Layout, dt: float, t: float) -> Rows:
+    def rows(self, model: RobotModel, layout: Layout, dt: float, t: float) -> Rows:
         """Motion rows over ``qdd`` then force rows over the contact slot.
 
         Raises:
@@ -177,7 +177,7 @@ class HybridTask(PoseTask):
         self._surface = slot.kind is ContactType.SURFACE
         if not self._surface and np.any(self._force_index >= 3):
             raise InvalidInput(f"{w}: a point contact has no torque components")
-        motion = super().rows(state, layout, dt, t)
+        motion = super().rows(model, layout, dt, t)
         k = len(self.force_axes)
         F = np.zeros((k, layout.n))
         F[np.arange(k), slot.start + self._force_index] = 1.0

@@ -187,7 +187,7 @@ class InternalForcesTask(Task):
         """
         self._goal = check_array(values, (None,), f"{self.where()}: goal")
 
-    def coordinates(self, state: RobotModel, layout: Layout) -> np.ndarray:
+    def coordinates(self, model: RobotModel, layout: Layout) -> np.ndarray:
         """Map ``K`` ``(k, n)``: selected internal coordinates ``c = K x``.
 
         Raises:
@@ -197,8 +197,8 @@ class InternalForcesTask(Task):
         """
         s1, s2 = self._slots(layout)
         comps = self.components(layout)
-        p1 = state.data.oMf[state.frame_id(s1.frame, self.where())].translation
-        p2 = state.data.oMf[state.frame_id(s2.frame, self.where())].translation
+        p1 = model.data.oMf[model.frame_id(s1.frame, self.where())].translation
+        p2 = model.data.oMf[model.frame_id(s2.frame, self.where())].translation
         B = internal_basis(p1, p2, s1.size == 6, self.where())
         Bp = np.linalg.pinv(B)
         names = COMPONENTS if s1.size == 6 else ("tension",)
@@ -208,14 +208,14 @@ class InternalForcesTask(Task):
         K[:, s2.slice] = rows[:, s1.size :]
         return K
 
-    def rows(self, state: RobotModel, layout: Layout, dt: float, t: float) -> Rows:
+    def rows(self, model: RobotModel, layout: Layout, dt: float, t: float) -> Rows:
         """Equality rows ``K x = c_goal`` ``(k, n)``.
 
         Raises:
             InvalidInput: Bad contacts, components, or a goal of the wrong size.
 
         """
-        K = self.coordinates(state, layout)
+        K = self.coordinates(model, layout)
         k = K.shape[0]
         goal = np.zeros(k) if self._goal is None else self._goal
         if goal.shape != (k,):
@@ -223,10 +223,10 @@ class InternalForcesTask(Task):
         self._last_goal = goal
         return Rows(A=K, b=goal.copy())
 
-    def measure(self, state: RobotModel, layout: Layout, x: object) -> np.ndarray:
+    def measure(self, model: RobotModel, layout: Layout, x: object) -> np.ndarray:
         """Return the internal coordinates ``(k,)`` of a solution ``x`` (kept for :meth:`error`)."""
         xv = check_array(x, (layout.n,), f"{self.where()}: x")
-        self._last = self.coordinates(state, layout) @ xv
+        self._last = self.coordinates(model, layout) @ xv
         return self._last
 
     def error(self) -> np.ndarray:

@@ -90,41 +90,41 @@ class JointLimitZone(Task):
         """Names of the joints in a zone at the last :meth:`rows` (for reports)."""
         self._error = np.zeros(0)
 
-    def _per_joint(self, value: np.ndarray, state: RobotModel, label: str) -> np.ndarray:
-        if value.size not in (1, state.na):
+    def _per_joint(self, value: np.ndarray, model: RobotModel, label: str) -> np.ndarray:
+        if value.size not in (1, model.na):
             raise InvalidGain(
-                f"{self.where()}: {label} has {value.size} entries, robot has {state.na} joints"
+                f"{self.where()}: {label} has {value.size} entries, robot has {model.na} joints"
             )
-        return np.broadcast_to(value, (state.na,)).astype(float)
+        return np.broadcast_to(value, (model.na,)).astype(float)
 
-    def safety_positions(self, state: RobotModel) -> tuple[np.ndarray, np.ndarray]:
+    def safety_positions(self, model: RobotModel) -> tuple[np.ndarray, np.ndarray]:
         """Safety positions near the lower and upper limits, each ``(na,)``."""
-        depth = self._per_joint(self.depth, state, "depth")
-        return state.q_lower + depth, state.q_upper - depth
+        depth = self._per_joint(self.depth, model, "depth")
+        return model.q_lower + depth, model.q_upper - depth
 
-    def active_indices(self, state: RobotModel) -> tuple[np.ndarray, np.ndarray]:
-        """Active joints at ``state`` and their safety positions.
+    def active_indices(self, model: RobotModel) -> tuple[np.ndarray, np.ndarray]:
+        """Active joints at ``model`` and their safety positions.
 
         Returns:
             ``(indices, q_limit)``: indices in the actuated vector (ascending)
             of the joints inside a zone, and their safety positions.
 
         """
-        zone = self._per_joint(self.zone, state, "zone")
-        q = state.q[state.actuated_q]
-        low_safe, high_safe = self.safety_positions(state)
-        upper = q > state.q_upper - zone
-        lower = q < state.q_lower + zone
+        zone = self._per_joint(self.zone, model, "zone")
+        q = model.q[model.actuated_q]
+        low_safe, high_safe = self.safety_positions(model)
+        upper = q > model.q_upper - zone
+        lower = q < model.q_lower + zone
         idx = np.flatnonzero(upper | lower)
         q_limit = np.where(upper, high_safe, low_safe)[idx]
         return idx, q_limit
 
-    def rows(self, state: RobotModel, layout: Layout, dt: float, t: float) -> Rows:
+    def rows(self, model: RobotModel, layout: Layout, dt: float, t: float) -> Rows:
         """One equality row ``qdd_i = qdd_ref_i`` per active joint (``(k, n)``, ``k >= 0``)."""
-        idx, q_limit = self.active_indices(state)
-        self.active = tuple(state.joint_names[i] for i in idx)
-        q = state.q[state.actuated_q][idx]
-        v = state.v[state.actuated][idx]
+        idx, q_limit = self.active_indices(model)
+        self.active = tuple(model.joint_names[i] for i in idx)
+        q = model.q[model.actuated_q][idx]
+        v = model.v[model.actuated][idx]
         self._error = q_limit - q
         v_des = (self.kp / self.kv) * self._error
         speed = float(np.linalg.norm(v_des))
@@ -133,7 +133,7 @@ class JointLimitZone(Task):
         if idx.size == 0:
             return Rows()
         A = np.zeros((idx.size, layout.n))
-        A[np.arange(idx.size), state.nv_base + idx] = 1.0
+        A[np.arange(idx.size), model.nv_base + idx] = 1.0
         return Rows(A=A, b=qdd_ref)
 
     def error(self) -> np.ndarray:

@@ -94,9 +94,9 @@ if TYPE_CHECKING:
 
 
 def max_acceleration_from_torques(
-    state: RobotModel, margin: float = 0.5, supports: Sequence[str] | None = None
+    model: RobotModel, margin: float = 0.5, supports: Sequence[str] | None = None
 ) -> np.ndarray:
-    """Estimate, per actuated joint, an acceleration the torque limits can produce at ``state``.
+    """Estimate, per actuated joint, an acceleration the torque limits can produce at ``model``.
 
     Two models of "joint ``i`` alone accelerating by ``A_i``":
 
@@ -119,7 +119,7 @@ def max_acceleration_from_torques(
     it as ``JointLimits(qdd_max=...)``.
 
     Args:
-        state: Updated robot model (``M``, ``h``, placements, ``tau_max``).
+        model: Updated robot model (``M``, ``h``, placements, ``tau_max``).
         margin: Fraction of the estimate kept, in ``(0, 1]``.
         supports: Names of the frames held by the environment (``None``: the
             fixed-base model above).
@@ -135,35 +135,35 @@ def max_acceleration_from_torques(
     if not (0.0 < margin <= 1.0):
         raise InvalidGain(f"max_acceleration_from_torques: margin must be in (0, 1], got {margin}")
     if supports is not None:
-        return margin * _support_acceleration(state, supports)
-    act = state.actuated
-    Maa = np.abs(state.M[act, act])
-    room = np.maximum(state.tau_max - np.abs(state.h[act]), 0.0)
+        return margin * _support_acceleration(model, supports)
+    act = model.actuated
+    Maa = np.abs(model.M[act, act])
+    room = np.maximum(model.tau_max - np.abs(model.h[act]), 0.0)
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = np.where(Maa > 1e-12, room[:, None] / Maa, np.inf)
     return margin * ratio.min(axis=0)
 
 
-def _support_acceleration(state: RobotModel, supports: Sequence[str]) -> np.ndarray:
+def _support_acceleration(model: RobotModel, supports: Sequence[str]) -> np.ndarray:
     """``(tau_max_i - |g_side|)_+ / I_side`` of the moving side of each joint (see above)."""
-    model, data = state.model, state.data
+    pin_model, data = model.model, model.data
     held = {
-        model.frames[state.frame_id(f, "max_acceleration_from_torques")].parentJoint
+        pin_model.frames[model.frame_id(f, "max_acceleration_from_torques")].parentJoint
         for f in supports
     }
-    first = model.njoints - state.na
-    bodies = [data.oMi[k].act(model.inertias[k]) for k in range(model.njoints)]
+    first = pin_model.njoints - model.na
+    bodies = [data.oMi[k].act(pin_model.inertias[k]) for k in range(pin_model.njoints)]
     total = pin.Inertia.Zero()
     for Y in bodies[1:]:
         total += Y
-    hold = pin.Motion(-state.gravity_vector, np.zeros(3))  # acceleration that holds the weight
-    out = np.zeros(state.na)
-    for i in range(state.na):
+    hold = pin.Motion(-model.gravity_vector, np.zeros(3))  # acceleration that holds the weight
+    out = np.zeros(model.na)
+    for i in range(model.na):
         j = first + i
-        J = pin.getJointJacobian(model, data, j, pin.ReferenceFrame.WORLD)
-        S = J[:, model.joints[j].idx_v]
+        J = pin.getJointJacobian(pin_model, data, j, pin.ReferenceFrame.WORLD)
+        S = J[:, pin_model.joints[j].idx_v]
         motion = pin.Motion(S)
-        subtree = set(model.subtrees[j])
+        subtree = set(pin_model.subtrees[j])
         sub = pin.Inertia.Zero()
         for k in subtree:
             sub += bodies[k]
@@ -179,7 +179,7 @@ def _support_acceleration(state: RobotModel, supports: Sequence[str]) -> np.ndar
             inertia = float(S @ (Y * motion).vector)
             weight = abs(float(S @ (Y * hold).vector))
             if inertia > 1e-12:
-                best = min(best, max(state.tau_max[i] - weight, 0.0) / inertia)
+                best = min(best, max(model.tau_max[i] - weight, 0.0) / inertia)
         out[i] = best
     return out
 
@@ -412,44 +412,44 @@ class JointLimits(Task):
         self.inactive_beyond = float(inactive_beyond)
         self._violation = np.zeros(0)
 
-    def max_acceleration(self, state: RobotModel) -> np.ndarray:
-        """Return the maximum deceleration ``A`` ``(na,)`` used at ``state``.
+    def max_acceleration(self, model: RobotModel) -> np.ndarray:
+        """Return the maximum deceleration ``A`` ``(na,)`` used at ``model``.
 
         Raises:
             InvalidGain: ``qdd_max`` of a size other than 1 or ``na``.
 
         """
         if self.qdd_max is None:
-            return max_acceleration_from_torques(state, self.margin, self.supports)
-        if self.qdd_max.size not in (1, state.na):
+            return max_acceleration_from_torques(model, self.margin, self.supports)
+        if self.qdd_max.size not in (1, model.na):
             raise InvalidGain(
                 f"{self.where()}: qdd_max has {self.qdd_max.size} entries, "
-                f"robot has {state.na} joints"
+                f"robot has {model.na} joints"
             )
-        return np.broadcast_to(self.qdd_max, (state.na,)).astype(float)
+        return np.broadcast_to(self.qdd_max, (model.na,)).astype(float)
 
-    def braking_deceleration(self, state: RobotModel) -> np.ndarray:
-        """Return the deceleration ``A`` ``(na,)`` of the viability bound at ``state``.
+    def braking_deceleration(self, model: RobotModel) -> np.ndarray:
+        """Return the deceleration ``A`` ``(na,)`` of the viability bound at ``model``.
 
         Raises:
             InvalidGain: ``braking`` or ``qdd_max`` of a size other than 1 or ``na``.
 
         """
-        A = self.max_acceleration(state)
+        A = self.max_acceleration(model)
         if self.support_braking is not None:
             braking = self.support_braking(() if self.airborne_braking else self._active_frames)
-            if braking.size != state.na:
+            if braking.size != model.na:
                 raise InvalidGain(f"{self.where()}: braking has {braking.size} entries, "
-                                  f"robot has {state.na} joints")
+                                  f"robot has {model.na} joints")
             return np.minimum(braking, A)
         if self.braking is None:
             return A
-        if self.braking.size not in (1, state.na):
+        if self.braking.size not in (1, model.na):
             raise InvalidGain(
                 f"{self.where()}: braking has {self.braking.size} entries, "
-                f"robot has {state.na} joints"
+                f"robot has {model.na} joints"
             )
-        return np.minimum(np.broadcast_to(self.braking, (state.na,)), A)
+        return np.minimum(np.broadcast_to(self.braking, (model.na,)), A)
 
     def set_active_contacts(self, frames: Sequence[str]) -> None:
         """Record the frames of the active contacts (called by the stack at every build)."""
@@ -466,8 +466,8 @@ class JointLimits(Task):
         """
         self.airborne_braking = bool(airborne)
 
-    def bounds(self, state: RobotModel, dt: float) -> tuple[np.ndarray, np.ndarray]:
-        """Acceleration bounds ``(lb, ub)``, each ``(na,)``, at ``state`` for the period ``dt``.
+    def bounds(self, model: RobotModel, dt: float) -> tuple[np.ndarray, np.ndarray]:
+        """Acceleration bounds ``(lb, ub)``, each ``(na,)``, at ``model`` for the period ``dt``.
 
         Raises:
             InvalidGain: ``dt`` not positive.
@@ -475,13 +475,13 @@ class JointLimits(Task):
         """
         if not (np.isfinite(dt) and dt > 0.0):
             raise InvalidGain(f"{self.where()}: dt must be > 0, got {dt}")
-        q = state.q[state.actuated_q]
-        v = state.v[state.actuated]
-        q_lo = state.q_lower + self.position_margin
-        q_hi = state.q_upper - self.position_margin
-        v_max = self.velocity_scale * state.v_max
-        A = self.max_acceleration(state)
-        B = self.braking_deceleration(state)
+        q = model.q[model.actuated_q]
+        v = model.v[model.actuated]
+        q_lo = model.q_lower + self.position_margin
+        q_hi = model.q_upper - self.position_margin
+        v_max = self.velocity_scale * model.v_max
+        A = self.max_acceleration(model)
+        B = self.braking_deceleration(model)
         clip = self.acceleration_bounds
         cap = np.minimum(A, self.reserve * B)
         T_v = self.velocity_time
@@ -497,14 +497,14 @@ class JointLimits(Task):
             ub = np.where(crossed, brake, ub)
         ub = np.where(ub > self.inactive_beyond, np.inf, ub)
         lb = np.where(lb < -self.inactive_beyond, -np.inf, lb)
-        self._violation = np.maximum(q - state.q_upper, 0.0) + np.maximum(state.q_lower - q, 0.0)
+        self._violation = np.maximum(q - model.q_upper, 0.0) + np.maximum(model.q_lower - q, 0.0)
         return lb, ub
 
-    def rows(self, state: RobotModel, layout: Layout, dt: float, t: float) -> Rows:
+    def rows(self, model: RobotModel, layout: Layout, dt: float, t: float) -> Rows:
         """Inequality rows ``(na, n)``: ``lb <= qdd_a <= ub``."""
-        lb, ub = self.bounds(state, dt)
-        C = np.zeros((state.na, layout.n))
-        C[:, state.actuated] = np.eye(state.na)
+        lb, ub = self.bounds(model, dt)
+        C = np.zeros((model.na, layout.n))
+        C[:, model.actuated] = np.eye(model.na)
         return Rows(C=C, lower=lb, upper=ub)
 
     def error(self) -> np.ndarray:

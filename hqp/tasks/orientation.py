@@ -74,7 +74,7 @@ def jlog3_rate(e: np.ndarray, de: np.ndarray) -> np.ndarray:
 
 
 def orientation_kinematics(
-    state: RobotModel, frame: str, goal: TrajectorySample
+    model: RobotModel, frame: str, goal: TrajectorySample
 ) -> TaskKinematics:
     """Kinematics of ``e = log3(E)``, ``E = R_g^T R`` (goal frame coordinates) [rad].
 
@@ -93,9 +93,9 @@ def orientation_kinematics(
     Rg = goal.position
     wg = goal.velocity
     ag = goal.acceleration
-    R = state.frame_placement(frame).rotation
-    w = state.frame_velocity(frame)[3:]
-    a_ang = state.frame_drift(frame)[3:]
+    R = model.frame_placement(frame).rotation
+    w = model.frame_velocity(frame)[3:]
+    a_ang = model.frame_drift(frame)[3:]
     Rt = R.T
     E = Rg.T.dot(R)
     e = pin.log3(E)
@@ -104,7 +104,7 @@ def orientation_kinematics(
     JR = Jlog.dot(Rt)
     de = Jlog.dot(xi)
     drift = JR.dot(a_ang + cross3(w, wg) - ag) + jlog3_rate_times(e, de, xi)
-    return TaskKinematics(e, de, JR.dot(state.frame_jacobian(frame)[3:]), drift)
+    return TaskKinematics(e, de, JR.dot(model.frame_jacobian(frame)[3:]), drift)
 
 
 class OrientationTask(TrackingTask):
@@ -175,15 +175,15 @@ class OrientationTask(TrackingTask):
         """
         self._store_goal(self._check_goal(goal, velocity, acceleration))
 
-    def value(self, state: RobotModel) -> np.ndarray:
+    def value(self, model: RobotModel) -> np.ndarray:
         """Return the current rotation ``R_world_frame`` ``(3, 3)``."""
-        return state.frame_placement(self.frame).rotation.copy()
+        return model.frame_placement(self.frame).rotation.copy()
 
-    def move_to(self, state: RobotModel, goal: object, duration: float, t0: float) -> None:
+    def move_to(self, model: RobotModel, goal: object, duration: float, t0: float) -> None:
         """Reach ``goal`` along a :class:`MinimumJerkRotation` from the current rotation."""
         R = self._check_goal(goal, None, None).position
-        self.set_trajectory(MinimumJerkRotation(self.value(state), R, duration, t0))
+        self.set_trajectory(MinimumJerkRotation(self.value(model), R, duration, t0))
 
-    def kinematics(self, state: RobotModel, t: float = 0.0) -> TaskKinematics:
+    def kinematics(self, model: RobotModel, t: float = 0.0) -> TaskKinematics:
         """See :func:`orientation_kinematics`."""
-        return orientation_kinematics(state, self.frame, self.goal_at(t))
+        return orientation_kinematics(model, self.frame, self.goal_at(t))

@@ -127,24 +127,24 @@ class PoseTask(TrackingTask):
         """
         self._store_goal(self._check_goal(goal, velocity, acceleration))
 
-    def value(self, state: RobotModel) -> np.ndarray:
+    def value(self, model: RobotModel) -> np.ndarray:
         """Return the current placement ``T_world_frame`` as a ``(4, 4)`` array."""
-        return state.frame_placement(self.frame).homogeneous.copy()
+        return model.frame_placement(self.frame).homogeneous.copy()
 
-    def move_to(self, state: RobotModel, goal: object, duration: float, t0: float) -> None:
+    def move_to(self, model: RobotModel, goal: object, duration: float, t0: float) -> None:
         """Reach ``goal`` along a :class:`MinimumJerkPose` from the current placement."""
         H = self._check_goal(goal, None, None).position
-        self.set_trajectory(MinimumJerkPose(self.value(state), H, duration, t0))
+        self.set_trajectory(MinimumJerkPose(self.value(model), H, duration, t0))
 
-    def kinematics(self, state: RobotModel, t: float = 0.0) -> TaskKinematics:
+    def kinematics(self, model: RobotModel, t: float = 0.0) -> TaskKinematics:
         """Stacked translation and rotation kinematics ``(6,)`` / ``(6, nv)``."""
         g = self.goal_at(t)
         rot = orientation_kinematics(
-            state,
+            model,
             self.frame,
             TrajectorySample(g.position[:3, :3], g.velocity[3:], g.acceleration[3:]),
         )
-        p, v, J, a = frame_position_kinematics(state, self.frame)
+        p, v, J, a = frame_position_kinematics(model, self.frame)
         return TaskKinematics(
             np.concatenate([p - g.position[:3, 3], rot.error]),
             np.concatenate([v - g.velocity[:3], rot.rate]),

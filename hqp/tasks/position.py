@@ -16,7 +16,7 @@ if TYPE_CHECKING:
 
 
 def frame_position_kinematics(
-    state: RobotModel, frame: str
+    model: RobotModel, frame: str
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """World position of a frame's origin and its derivatives at the updated state.
 
@@ -26,10 +26,10 @@ def frame_position_kinematics(
         the origin's classical acceleration at ``qdd = 0`` ``(3,)`` [m/s^2].
 
     """
-    p = state.frame_placement(frame).translation
-    J = state.frame_jacobian(frame)
-    v = state.frame_velocity(frame)
-    a = state.frame_drift(frame)
+    p = model.frame_placement(frame).translation
+    J = model.frame_jacobian(frame)
+    v = model.frame_velocity(frame)
+    a = model.frame_drift(frame)
     return p, v[:3], J[:3], a[:3]
 
 
@@ -85,8 +85,8 @@ class PositionTask(VectorTrackingTask):
         self.axes = parse_axes(axes, 3, self.where())
         self.goal_size = len(self.axes)
 
-    def measure(self, state: RobotModel) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    def measure(self, model: RobotModel) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """``(S p, S pd, S J_lin, S a_lin)``."""
         ax = self.axes
-        p, v, J, a = frame_position_kinematics(state, self.frame)
+        p, v, J, a = frame_position_kinematics(model, self.frame)
         return p[ax], v[ax], J[ax], a[ax]

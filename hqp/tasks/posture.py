@@ -231,11 +231,11 @@ class PostureTask(VectorTrackingTask):
         qa = check_array(pose, (robot.na,), f"{self.where()}: pose over all actuated joints")
         self.set_goal(qa[self._q_index - robot.nq_base])
 
-    def measure(self, state: RobotModel) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    def measure(self, model: RobotModel) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """``(q_sel, v_sel, S_sel, 0)`` (``S_sel`` and ``0`` are read-only arrays)."""
-        if state.nv == self._nv:
-            return state.q[self._q_index], state.v[self._v_index], self._J, self._drift
+        if model.nv == self._nv:
+            return model.q[self._q_index], model.v[self._v_index], self._J, self._drift
         k = self.goal_size
-        J = np.zeros((k, state.nv))
+        J = np.zeros((k, model.nv))
         J[np.arange(k), self._v_index] = 1.0
-        return state.q[self._q_index], state.v[self._v_index], J, np.zeros(k)
+        return model.q[self._q_index], model.v[self._v_index], J, np.zeros(k)

@@ -65,31 +65,31 @@ class TorqueLimits(Task):
                 raise InvalidGain(f"{self.where()}: tau_max must be >= 0, got {arr}")
             self.tau_max = arr
 
-    def bounds(self, state: RobotModel) -> np.ndarray:
-        """Torque bounds ``(na,)`` [N m] used at ``state`` (after ``scale``).
+    def bounds(self, model: RobotModel) -> np.ndarray:
+        """Torque bounds ``(na,)`` [N m] used at ``model`` (after ``scale``).
 
         Raises:
             InvalidGain: ``tau_max`` of a size other than 1 or ``na``.
 
         """
         if self.tau_max is None:
-            tau = state.tau_max
-        elif self.tau_max.size in (1, state.na):
-            tau = np.broadcast_to(self.tau_max, (state.na,))
+            tau = model.tau_max
+        elif self.tau_max.size in (1, model.na):
+            tau = np.broadcast_to(self.tau_max, (model.na,))
         else:
             raise InvalidGain(
                 f"{self.where()}: tau_max has {self.tau_max.size} entries, "
-                f"robot has {state.na} joints"
+                f"robot has {model.na} joints"
             )
         return self.scale * np.asarray(tau, dtype=float)
 
-    def rows(self, state: RobotModel, layout: Layout, dt: float, t: float) -> Rows:
+    def rows(self, model: RobotModel, layout: Layout, dt: float, t: float) -> Rows:
         """Inequality rows ``(na, n)``.
 
         Raises:
             InvalidFrame: A contact frame of the layout is not in the model.
 
         """
-        T, t0 = torque_map(state, layout, self.where())
-        tau = self.bounds(state)
+        T, t0 = torque_map(model, layout, self.where())
+        tau = self.bounds(model)
         return Rows(C=T, lower=-tau - t0, upper=tau - t0)

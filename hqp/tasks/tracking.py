@@ -231,14 +231,14 @@ class TrackingTask(Task):
     # -- kinematics and rows --------------------------------------------------------------------
 
     @abc.abstractmethod
-    def kinematics(self, state: RobotModel, t: float = 0.0) -> TaskKinematics:
+    def kinematics(self, model: RobotModel, t: float = 0.0) -> TaskKinematics:
         """Error, its rate, Jacobian and drift at the updated state and time ``t``."""
 
     def feedback(self, kin: TaskKinematics) -> np.ndarray:
         """PD feedback ``a_fb(e, de/dt)`` of the reference (eq. 27-28)."""
         return self.reference.feedback(kin.error, kin.rate)
 
-    def rows(self, state: RobotModel, layout: Layout, dt: float, t: float) -> Rows:
+    def rows(self, model: RobotModel, layout: Layout, dt: float, t: float) -> Rows:
         """Equality rows ``[J | 0] x = a_fb - drift`` ``(m, n)``.
 
         Raises:
@@ -246,9 +246,9 @@ class TrackingTask(Task):
 
         """
         nv = layout.nv
-        if nv != state.nv:
-            raise InvalidInput(f"{self.where()}: layout nv={nv}, robot nv={state.nv}")
-        kin = self.kinematics(state, t)
+        if nv != model.nv:
+            raise InvalidInput(f"{self.where()}: layout nv={nv}, robot nv={model.nv}")
+        kin = self.kinematics(model, t)
         a = self.feedback(kin)
         A = np.zeros((kin.jacobian.shape[0], layout.n))
         A[:, :nv] = kin.jacobian
@@ -271,7 +271,7 @@ class VectorGoalTask(TrackingTask):
     goal_size: int = 3
 
     @abc.abstractmethod
-    def value(self, state: RobotModel) -> np.ndarray:
+    def value(self, model: RobotModel) -> np.ndarray:
         """Return the current value a goal replaces (start of :meth:`move_to`) ``(goal_size,)``."""
 
     def _check_goal(
@@ -300,7 +300,7 @@ class VectorGoalTask(TrackingTask):
         """
         self._store_goal(self._check_goal(goal, velocity, acceleration))
 
-    def move_to(self, state: RobotModel, goal: object, duration: float, t0: float) -> None:
+    def move_to(self, model: RobotModel, goal: object, duration: float, t0: float) -> None:
         """Reach ``goal`` along a :class:`MinimumJerk` from the current value, from ``t0`` [s].
 
         Raises:
@@ -308,7 +308,7 @@ class VectorGoalTask(TrackingTask):
 
         """
         g = self._check_goal(goal, None, None).position
-        self.set_trajectory(MinimumJerk(self.value(state), g, duration, t0))
+        self.set_trajectory(MinimumJerk(self.value(model), g, duration, t0))
 
 
 class VectorTrackingTask(VectorGoalTask):
@@ -322,17 +322,17 @@ class VectorTrackingTask(VectorGoalTask):
     scale: np.ndarray | None = None
 
     @abc.abstractmethod
-    def measure(self, state: RobotModel) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    def measure(self, model: RobotModel) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """``(x, xd, J_x, dJ_x v)`` at the updated state; ``xdd = J_x qdd + dJ_x v``."""
 
-    def value(self, state: RobotModel) -> np.ndarray:
+    def value(self, model: RobotModel) -> np.ndarray:
         """Return the current task value ``x`` ``(m,)`` (unscaled)."""
-        return self.measure(state)[0].copy()
+        return self.measure(model)[0].copy()
 
-    def kinematics(self, state: RobotModel, t: float = 0.0) -> TaskKinematics:
+    def kinematics(self, model: RobotModel, t: float = 0.0) -> TaskKinematics:
         """``e = W (x - x_goal)`` and its derivatives (see :class:`TaskKinematics`)."""
         goal = self.goal_at(t)
-        x, xd, J, dJv = self.measure(state)
+        x, xd, J, dJv = self.measure(model)
         e = x - goal.position
         rate = xd - goal.velocity
         drift = dJv - goal.acceleration
