@@ -500,7 +500,7 @@ def test_last_resort_fallback_is_warned_once_per_qp_then_logged_at_debug(caplog)
     import logging
 
     from hqp.solver.backends import QPBackend
-    from hqp.solver.hierarchy import _qp
+    from hqp.solver.qp import solve_qp
 
     class Broken(QPBackend):
         name = "broken-for-test"
@@ -511,11 +511,11 @@ def test_last_resort_fallback_is_warned_once_per_qp_then_logged_at_debug(caplog)
     H, g = np.eye(2), np.array([-1.0, -4.0])
     C, lo, up = np.eye(2), np.full(2, -1.0), np.full(2, 1.0)
     backend = Broken()
-    with caplog.at_level(logging.DEBUG, logger="hqp.solver.hierarchy"):
+    with caplog.at_level(logging.DEBUG, logger="hqp.solver.qp"):
         for _ in range(5):
-            v, _ok = _qp(backend, ("test", 0), H, g, None, None, C, lo, up)
+            v, _ok = solve_qp(backend, ("test", 0), H, g, None, None, C, lo, up)
             np.testing.assert_allclose(v, [1.0, 1.0], atol=1e-9)
-        _qp(backend, ("test", 1), H, g, None, None, C, lo, up)
+        solve_qp(backend, ("test", 1), H, g, None, None, C, lo, up)
     warned = [r for r in caplog.records if r.levelno == logging.WARNING]
     assert len(warned) == 2  # one per slot
     assert "further occurrences" in warned[0].getMessage()

@@ -22,7 +22,6 @@ of ``tests/test_solver.py``.
 
 from __future__ import annotations
 
-import time
 from pathlib import Path
 
 import numpy as np
@@ -83,11 +82,9 @@ inequality-only levels' reduced QPs (singular reduced Hessian, regularised by
 iterations (:meth:`hqp.solver.backends.quadprog.QuadprogBackend._proximal`)."""
 
 
-@pytest.mark.parametrize(("name", "backend"), CASES)
-def test_real_problem_solved_lexicographically(name, backend):
-    levels = load_levels(name)
+def assert_lexicographic(name: str, levels: list[Level], sol) -> None:
+    """The solution's costs are the levels' and lexicographically no worse than the reference."""
     ref = reference(name, levels)
-    sol = HierarchicalSolver(backend).solve(levels)
     assert np.isfinite(sol.x).all()
     np.testing.assert_allclose(sol.costs, [level_cost(lv, sol.x) for lv in levels],
                                rtol=1e-12, atol=1e-12)
@@ -105,6 +102,12 @@ def test_real_problem_solved_lexicographically(name, backend):
     assert np.all(sol.costs[:3] <= 1e-6), sol.costs
 
 
+@pytest.mark.parametrize(("name", "backend"), CASES)
+def test_real_problem_solved_lexicographically(name, backend):
+    levels = load_levels(name)
+    assert_lexicographic(name, levels, HierarchicalSolver(backend).solve(levels))
+
+
 @pytest.mark.parametrize("name", PROBLEMS)
 def test_real_problem_backends_agree(name):
     levels = load_levels(name)
@@ -115,17 +118,12 @@ def test_real_problem_backends_agree(name):
 
 
 @pytest.mark.parametrize("backend", ("proxsuite", "daqp"))
-def test_real_problems_cpu_time(backend):
-    # Before the fix: proxsuite 0.6-1.8 s of CPU time per solve on these problems
-    # (stall at 1000 outer iterations, cold retry, DAQP fallback), daqp a failure.
-    # Persistent solver as in a control loop; CPU time, not wall time.
+def test_real_problems_persistent_solver(backend):
+    # A persistent solver as in a control loop (warm starts, sticky relaxations, the
+    # fallbacks that once stalled proxsuite at 1000 iterations and failed daqp here) solves
+    # every problem lexicographically, solve after solve. Speed is the benchmark's.
     solver = HierarchicalSolver(backend)
-    times = []
     for name in PROBLEMS:
         levels = load_levels(name)
         for _ in range(3):
-            t0 = time.thread_time()
-            solver.solve(levels)
-            times.append(time.thread_time() - t0)
-    assert max(times) < 0.5, times
-    assert float(np.median(times)) < 0.1, times
+            assert_lexicographic(name, levels, solver.solve(levels))

@@ -187,11 +187,11 @@ BREAKDOWN = (
     ("step", "servo.py", "step"),
     ("model update", "model.py", "update"),
     ("rows (stack.build)", "stack.py", "build"),
-    ("solve", "hierarchy.py", "solve"),
-    ("  QP backend calls", "hierarchy.py", "_qp"),
+    ("solve", "solver/hierarchy.py", "solve"),
+    ("  QP backend calls", "solver/qp.py", "solve_qp"),
     ("  validation (check_level)", "level.py", "check_level"),
-    ("  level reports", "hierarchy.py", "_report"),
-    ("  sigma_min", "hierarchy.py", "_sigma_level"),
+    ("  level reports", "solver/report.py", "level_report"),
+    ("  sigma_min", "solver/report.py", "sigma_level"),
     ("torques", "dynamics.py", "joint_torques"),
     ("feasibility report", "diagnostics.py", "hqp_statuses"),
 )
@@ -201,7 +201,7 @@ BREAKDOWN = (
 def cpu_breakdown(stats: pstats.Stats, steps: int) -> dict[str, float]:
     """Cumulative CPU time per step [ms] of the functions of :data:`BREAKDOWN`.
 
-    Functions of the same name in the same file are summed (e.g. every ``_qp`` call).
+    Functions of the same name in the same file are summed (e.g. every ``solve_qp`` call).
     """
     raw = stats.stats  # type: ignore[attr-defined]
     out: dict[str, float] = {}

@@ -34,6 +34,8 @@ optimal one), or, cold, from the least-squares point.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 from scipy.optimize import nnls
 
@@ -69,47 +71,65 @@ class Guess:
         self.w = w
 
 
+@dataclass(slots=True)
+class LevelRows:
+    """A level's rows in the coordinates ``v`` of its problem (``C v`` against its band).
+
+    Attributes:
+        A: Least-squares rows ``(ma, nv)``; ``b``: their targets ``(ma,)``.
+        C: Level inequality rows ``(mc, nv)``.
+        lo: Their lower bounds ``(mc,)`` (``-inf`` allowed); ``up``: upper bounds (``+inf``).
+        los: Tolerance scales ``max(1, |lo|)`` ``(mc,)``; ``ups``: the same of ``up``.
+
+    """
+
+    A: np.ndarray
+    b: np.ndarray
+    C: np.ndarray
+    lo: np.ndarray
+    up: np.ndarray
+    los: np.ndarray
+    ups: np.ndarray
+
+
+@dataclass(slots=True)
+class CarriedRows:
+    """Inequality rows carried from the levels above: ``gl <= G v <= gu``.
+
+    Attributes:
+        G: ``(p, nv)``; ``gl``, ``gu``: bounds ``(p,)``; ``gls``, ``gus``: their tolerance scales.
+
+    """
+
+    G: np.ndarray
+    gl: np.ndarray
+    gu: np.ndarray
+    gls: np.ndarray
+    gus: np.ndarray
+
+
 def solve_guess(
-    A: np.ndarray,
-    b: np.ndarray,
-    C: np.ndarray,
-    lo: np.ndarray,
-    up: np.ndarray,
-    los: np.ndarray,
-    ups: np.ndarray,
-    E: np.ndarray | None,
-    e: np.ndarray | None,
-    G: np.ndarray | None,
-    gl: np.ndarray | None,
-    gu: np.ndarray | None,
-    gls: np.ndarray | None,
-    gus: np.ndarray | None,
+    level: LevelRows,
+    carried: CarriedRows | None,
     guess: Guess,
     rank_tol: float,
     scale: float,
+    *,
+    E: np.ndarray | None = None,
+    e: np.ndarray | None = None,
     max_iter: int = MAX_ITER,
     ref: np.ndarray | None = None,
 ) -> tuple[np.ndarray | None, Guess, int]:
     """Solve the level problem from an active-set guess; ``None`` if no guess verifies.
 
     Args:
-        A: Least-squares rows ``(ma, nv)``.
-        b: Their targets ``(ma,)``.
-        C: Level inequality rows ``(mc, nv)``.
-        lo: Their lower bounds ``(mc,)`` (``-inf`` allowed).
-        up: Their upper bounds ``(mc,)`` (``+inf`` allowed).
-        los: Tolerance scales ``max(1, |lo|)`` ``(mc,)``.
-        ups: Tolerance scales ``max(1, |up|)`` ``(mc,)``.
-        E: Hard equality rows ``(me, nv)`` or ``None``.
-        e: Their right-hand side ``(me,)`` or ``None``.
-        G: Carried inequality rows ``(p, nv)`` or ``None``.
-        gl: Their lower bounds ``(p,)``.
-        gu: Their upper bounds ``(p,)``.
-        gls: Tolerance scales of ``gl``.
-        gus: Tolerance scales of ``gu``.
+        level: The level's rows.
+        carried: The carried rows, or ``None`` when none is carried.
         guess: Initial guess (``s`` ``(mc,)``, ``w`` ``(p,)``).
         rank_tol: Relative rank threshold of the factorisations.
         scale: Largest entry of the level's unprojected rows (rank decisions).
+        E: Hard equality rows ``(me, nv)`` or ``None`` (the cascade's held rows).
+        e: Their right-hand side ``(me,)`` or ``None``.
         max_iter: Guess updates tried after the first.
         ref: Reference point ``(nv,)``: where the least-squares rows leave
             directions free, the minimiser closest to it is taken (``None``:
@@ -122,6 +142,12 @@ def solve_guess(
         number of equality-constrained solves.
 
     """
+    A, b, C, lo, up, los = level.A, level.b, level.C, level.lo, level.up, level.los
+    ups = level.ups
+    if carried is None:
+        G = gl = gu = gls = gus = None
+    else:
+        G, gl, gu, gls, gus = carried.G, carried.gl, carried.gu, carried.gls, carried.gus
     nv = A.shape[1]
     s = guess.s
     w = guess.w
@@ -303,33 +329,22 @@ def _signed_multipliers(
 
 def guess_from_point(
     cv: np.ndarray | None,
-    lo: np.ndarray,
-    up: np.ndarray,
-    los: np.ndarray,
-    ups: np.ndarray,
+    level: LevelRows,
     gv: np.ndarray | None,
-    gl: np.ndarray | None,
-    gu: np.ndarray | None,
-    gls: np.ndarray | None,
-    gus: np.ndarray | None,
+    carried: CarriedRows | None,
     active_tol: float,
 ) -> Guess:
     """Return the active set of a point (level rows by the side they violate, carried rows held).
 
     Args:
         cv: ``C v`` ``(mc,)`` (``None`` without level rows).
-        lo: Level lower bounds ``(mc,)``.
-        up: Level upper bounds ``(mc,)``.
-        los: Tolerance scales of ``lo``.
-        ups: Tolerance scales of ``up``.
+        level: The level's rows (their bounds and tolerance scales are read).
         gv: ``G v`` ``(p,)`` (``None`` without carried rows).
-        gl: Carried lower bounds ``(p,)``.
-        gu: Carried upper bounds ``(p,)``.
-        gls: Tolerance scales of ``gl``.
-        gus: Tolerance scales of ``gu``.
+        carried: The carried rows (bounds and scales read when ``gv`` is given).
         active_tol: A carried row within ``active_tol * scale`` of a bound is held.
 
     """
+    lo, up, los, ups = level.lo, level.up, level.los, level.ups
     if cv is None or cv.size == 0:
         s = np.zeros(0, dtype=np.int8)
     else:
@@ -339,9 +354,10 @@ def guess_from_point(
         both = (s == 0) & (cv >= up - active_tol * ups)
         if both.any():
             s[both] = np.where(cv[both] >= 0.5 * (lo[both] + up[both]), 1, -1)
-    if gv is None or gv.size == 0:
+    if gv is None or gv.size == 0 or carried is None:
         w = np.zeros(0, dtype=np.int8)
     else:
+        gl, gu, gls, gus = carried.gl, carried.gu, carried.gls, carried.gus
         near_up = gv >= gu - active_tol * gus
         near_lo = gv <= gl + active_tol * gls
         w = near_up.astype(np.int8) - near_lo.astype(np.int8)

@@ -75,6 +75,17 @@ class CheckedLevel:
         return self.C.shape[0]
 
 
+class Internal:
+    """Kind of a level: a user's, or one of the solver's internal final levels."""
+
+    NONE = 0
+    """A user's level."""
+    METRIC = 1
+    """The final metric ``(x - t)^T M (x - t)`` as ``A = M^{1/2}``, ``b = M^{1/2} t``."""
+    NORM = 2
+    """The minimum norm (``A = I``, ``b = 0``; or ``b = t`` without a metric)."""
+
+
 def _where(k: int, name: str, field: str) -> str:
     label = f"level {k}" + (f" ({name!r})" if name else "")
     return f"{label}, field {field}"

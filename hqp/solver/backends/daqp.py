@@ -39,7 +39,7 @@ ATTEMPTS = tuple((SETTINGS["primal_tol"], e) for e in EPS_PROX_SEQUENCE) + tuple
     (1e-8, e) for e in EPS_PROX_SEQUENCE)
 """``(primal_tol, eps_prox)`` tried in turn: the tight primal tolerance first,
 then ``1e-8``. Carried rows of a hierarchy can leave feasible sets only about
-``1e-9`` thick (implicit equalities, :data:`hqp.solver.hierarchy.CARRY_MARGIN`),
+``1e-9`` thick (implicit equalities, :data:`hqp.solver.carried.CARRY_MARGIN`),
 where DAQP's dual steps with a ``1e-10`` primal tolerance cycle into false
 infeasibility; a failed attempt costs a few dozen iterations. The hierarchy
 widens its carried bounds to contain the returned point, so a ``1e-8``

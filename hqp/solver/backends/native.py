@@ -4,7 +4,7 @@ Unlike the QP backends, ``native`` is not called level by level: the basis algor
 active-set warm start, the rank decisions and a compiled QP (DAQP's C sources) for the
 cold and degenerate levels all run in C++ (``hqp/_core/src/solver/``), with the GIL
 released, in a workspace that is allocated once per shape of the hierarchy. The Python
-basis algorithm of :mod:`hqp.solver.hierarchy` is its reference and test oracle.
+basis algorithm of :mod:`hqp.solver.basis` is its reference and test oracle.
 """
 
 from __future__ import annotations
