@@ -112,6 +112,23 @@ def test_bad_gains_name_the_primitive(robot, make) -> None:
         make(robot)
 
 
+@pytest.mark.parametrize(
+    "make",
+    [
+        lambda r, **gains: CoMTask(r, **gains),
+        lambda r, **gains: PositionTask(r, HAND, **gains),
+        lambda r, **gains: OrientationTask(r, HAND, **gains),
+        lambda r, **gains: PoseTask(r, HAND, **gains),
+        lambda r, **gains: GazeTask(r, "head2_joint", **gains),
+        lambda r, **gains: PostureTask(r, **gains),
+        lambda r, **gains: HybridTask(r, HAND, "c", **gains),
+    ],
+)
+def test_gain_keywords_reach_the_reference(robot, make) -> None:
+    ref = make(robot, kp=4.0, kv=3.0, max_velocity=0.5, max_acceleration=2.0).reference
+    assert (ref.kp, ref.kv, ref.max_velocity, ref.max_acceleration) == (4.0, 3.0, 0.5, 2.0)
+
+
 def test_set_gains_validates_and_keeps_old_reference(robot) -> None:
     task = PositionTask(robot, HAND, kp=100.0, max_velocity=0.5)
     with pytest.raises(InvalidGain, match="PositionTask"):

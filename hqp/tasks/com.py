@@ -10,7 +10,7 @@ import numpy as np
 
 from hqp.errors import InvalidInput
 from hqp.tasks.base import Category
-from hqp.tasks.tracking import VectorTrackingTask
+from hqp.tasks.tracking import Gains, VectorTrackingTask
 
 if TYPE_CHECKING:
     from hqp.model import RobotModel
@@ -68,9 +68,7 @@ class CoMTask(VectorTrackingTask):
         max_velocity: float = math.inf,
         max_acceleration: float = math.inf,
     ) -> None:
-        super().__init__(
-            name, weight, kp=kp, kv=kv, max_velocity=max_velocity, max_acceleration=max_acceleration
-        )
+        super().__init__(name, weight, Gains(kp, kv, max_velocity, max_acceleration))
         self.horizontal = bool(horizontal)
         self.goal_size = 2 if self.horizontal else 3
         self._sel = slice(0, self.goal_size)

@@ -10,7 +10,7 @@ import numpy as np
 
 from hqp.errors import InvalidInput, check_array
 from hqp.tasks.base import Category, cross3
-from hqp.tasks.tracking import TaskKinematics, VectorGoalTask
+from hqp.tasks.tracking import Gains, TaskKinematics, VectorGoalTask
 
 if TYPE_CHECKING:
     from hqp.model import RobotModel
@@ -75,9 +75,7 @@ class GazeTask(VectorGoalTask):
         max_velocity: float = math.inf,
         max_acceleration: float = math.inf,
     ) -> None:
-        super().__init__(
-            name, weight, kp=kp, kv=kv, max_velocity=max_velocity, max_acceleration=max_acceleration
-        )
+        super().__init__(name, weight, Gains(kp, kv, max_velocity, max_acceleration))
         robot.frame_id(frame, self.where())
         self.frame = frame
         a = check_array(axis, (3,), f"{self.where()}: axis")

@@ -10,7 +10,7 @@ import pinocchio as pin
 
 from hqp.tasks.base import Category, cross3
 from hqp.tasks.reference import MinimumJerkRotation, TrajectorySample, check_rotation
-from hqp.tasks.tracking import TaskKinematics, TrackingTask
+from hqp.tasks.tracking import Gains, TaskKinematics, TrackingTask
 
 if TYPE_CHECKING:
     from hqp.model import RobotModel
@@ -147,14 +147,7 @@ class OrientationTask(TrackingTask):
         max_velocity: float = math.inf,
         max_acceleration: float = math.inf,
     ) -> None:
-        super().__init__(
-            name or frame,
-            weight,
-            kp=kp,
-            kv=kv,
-            max_velocity=max_velocity,
-            max_acceleration=max_acceleration,
-        )
+        super().__init__(name or frame, weight, Gains(kp, kv, max_velocity, max_acceleration))
         robot.frame_id(frame, self.where())
         self.frame = frame
 

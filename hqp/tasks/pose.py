@@ -11,7 +11,7 @@ from hqp.tasks.base import Category
 from hqp.tasks.orientation import orientation_kinematics
 from hqp.tasks.position import frame_position_kinematics
 from hqp.tasks.reference import MinimumJerkPose, PDReference, TrajectorySample, check_placement
-from hqp.tasks.tracking import TaskKinematics, TrackingTask
+from hqp.tasks.tracking import Gains, TaskKinematics, TrackingTask
 
 if TYPE_CHECKING:
     from hqp.model import RobotModel
@@ -66,14 +66,7 @@ class PoseTask(TrackingTask):
         max_angular_velocity: float | None = None,
         max_angular_acceleration: float | None = None,
     ) -> None:
-        super().__init__(
-            name or frame,
-            weight,
-            kp=kp,
-            kv=kv,
-            max_velocity=max_velocity,
-            max_acceleration=max_acceleration,
-        )
+        super().__init__(name or frame, weight, Gains(kp, kv, max_velocity, max_acceleration))
         robot.frame_id(frame, self.where())
         self.frame = frame
         self.angular_reference = self._angular(max_angular_velocity, max_angular_acceleration)

@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from hqp.tasks.base import Category
-from hqp.tasks.tracking import VectorTrackingTask, parse_axes
+from hqp.tasks.tracking import Gains, VectorTrackingTask, parse_axes
 
 if TYPE_CHECKING:
     from hqp.model import RobotModel
@@ -72,14 +72,7 @@ class PositionTask(VectorTrackingTask):
         max_velocity: float = math.inf,
         max_acceleration: float = math.inf,
     ) -> None:
-        super().__init__(
-            name or frame,
-            weight,
-            kp=kp,
-            kv=kv,
-            max_velocity=max_velocity,
-            max_acceleration=max_acceleration,
-        )
+        super().__init__(name or frame, weight, Gains(kp, kv, max_velocity, max_acceleration))
         robot.frame_id(frame, self.where())
         self.frame = frame
         self.axes = parse_axes(axes, 3, self.where())

@@ -13,7 +13,7 @@ import numpy as np
 from hqp.errors import InvalidInput, check_array
 from hqp.tasks.base import Category
 from hqp.tasks.reference import TrajectorySample
-from hqp.tasks.tracking import VectorTrackingTask
+from hqp.tasks.tracking import Gains, VectorTrackingTask
 
 if TYPE_CHECKING:
     from hqp.model import RobotModel
@@ -117,9 +117,7 @@ class PostureTask(VectorTrackingTask):
         max_velocity: float = math.inf,
         max_acceleration: float = math.inf,
     ) -> None:
-        super().__init__(
-            name, weight, kp=kp, kv=kv, max_velocity=max_velocity, max_acceleration=max_acceleration
-        )
+        super().__init__(name, weight, Gains(kp, kv, max_velocity, max_acceleration))
         w = self.where()
         if joints is None:
             names = list(robot.joint_names)

@@ -94,34 +94,54 @@ class TaskKinematics:
     drift: np.ndarray
 
 
+@dataclass(frozen=True)
+class Gains:
+    """Gains and saturations of a tracking task's :class:`PDReference` (seed 003 eq. 27-28).
+
+    The tracking tasks take them as the keywords ``kp``, ``kv``, ``max_velocity`` and
+    ``max_acceleration`` of their constructors and hand them to :class:`TrackingTask` as one
+    record; :meth:`reference` checks them.
+
+    Attributes:
+        kp: Stiffness [1/s^2].
+        kv: Damping [1/s] (``None``: ``2 sqrt(kp)``).
+        max_velocity: Saturation of the corrective velocity (task units/s).
+        max_acceleration: Saturation of the feedback acceleration (task units/s^2).
+
+    """
+
+    kp: float = 100.0
+    kv: float | None = None
+    max_velocity: float = math.inf
+    max_acceleration: float = math.inf
+
+    def reference(self, where: str) -> PDReference:
+        """Return the PD reference of these gains.
+
+        Raises:
+            InvalidGain: Bad gains (the message starts with ``where``).
+
+        """
+        return PDReference(self.kp, self.kv, self.max_velocity, self.max_acceleration, where=where)
+
+
 class TrackingTask(Task):
     """Base of the primitives that track a goal through :class:`PDReference` rows.
 
     Args:
         name: Task name.
         weight: Weight within its level.
-        kp: Stiffness [1/s^2].
-        kv: Damping [1/s] (``None``: ``2 sqrt(kp)``).
-        max_velocity: Saturation of the corrective velocity (task units/s).
-        max_acceleration: Saturation of the feedback acceleration (task units/s^2).
+        gains: The PD reference's gains and saturations (default: ``kp = 100``, critical
+            damping, no saturation).
 
     Raises:
         InvalidGain: Bad gains or weight (names the primitive).
 
     """
 
-    def __init__(
-        self,
-        name: str,
-        weight: float = 1.0,
-        *,
-        kp: float = 100.0,
-        kv: float | None = None,
-        max_velocity: float = math.inf,
-        max_acceleration: float = math.inf,
-    ) -> None:
+    def __init__(self, name: str, weight: float = 1.0, gains: Gains = Gains()) -> None:
         super().__init__(name, weight)
-        self.reference = PDReference(kp, kv, max_velocity, max_acceleration, where=self.where())
+        self.reference = gains.reference(self.where())
         self._goal: TrajectorySample | None = None
         self._trajectory: Trajectory | None = None
         self._last: TaskKinematics | None = None
