@@ -38,6 +38,8 @@ def test_import_hqp_stays_light():
     ("hqp.sim", "Simulator"), ("hqp.sim", "Push"), ("hqp.sim", "Event"),
     ("hqp.tasks.position", "PositionTask"), ("hqp.solver", "Level"), ("hqp.solver", "solve"),
     ("hqp.cli", "main"), ("hqp.app.cli", "main"),
+    ("hqp.model", "RobotModel"), ("hqp.model", "RobotState"), ("hqp.layout", "Layout"),
+    ("hqp.layout", "ContactType"), ("hqp.world", "World"), ("hqp.geometry", "monotone_chain"),
 ])
 def test_public_import_paths_keep_working(path, name):
     assert callable(getattr(importlib.import_module(path), name))
