@@ -166,16 +166,10 @@ def solve_guess(
         gu_in = gu + FEAS_TOL * gus
     # a stale guess (bounds change between control steps) may hold a row at a bound that is
     # now infinite: release those rows rather than solve for a non-finite point
-    if mc and s.any():
-        stale = ((s > 0) & ~np.isfinite(up)) | ((s < 0) & ~np.isfinite(lo))
-        if stale.any():
-            s = s.copy()
-            s[stale] = 0
-    if p and w.any():
-        stale = ((w > 0) & ~np.isfinite(gu)) | ((w < 0) & ~np.isfinite(gl))
-        if stale.any():
-            w = w.copy()
-            w[stale] = 0
+    if mc:
+        s = _release_stale(s, lo, up)
+    if p:
+        w = _release_stale(w, gl, gu)
     es = np.maximum(1.0, np.abs(e)) if me else None
     seen: set[bytes] = set()
     for it in range(max_iter + 1):
@@ -184,12 +178,7 @@ def solve_guess(
             break  # cycling
         seen.add(key)
         # stacked least-squares rows M v ~ d and held rows K v = k
-        if mc and s.any():
-            sel = np.flatnonzero(s)
-            M = np.concatenate((A, C[sel]))
-            d = np.concatenate((b, np.where(s[sel] > 0, up[sel], lo[sel])))
-        else:
-            M, d = A, b
+        M, d = _stack(A, b, C, lo, up, s) if mc and s.any() else (A, b)
         held = np.flatnonzero(w) if p else _NO_ROWS
         nheld = held.size
         rk = 0
@@ -208,27 +197,9 @@ def solve_guess(
                     K, k, ks = Gh, kh, khs
             else:
                 K, k, ks = E, e, es
-            qr, jpvt, tau, _work, _info = _dgeqp3(K.T.copy(order="F"))
-            piv = jpvt - 1
-            diag = np.abs(np.diagonal(qr))
-            if diag.size:
-                rk = int(np.count_nonzero(diag > rank_tol * float(diag[0])))
-            nk = K.shape[0]
-            if rk < nv:
-                a = np.zeros((nv, nv), order="F")
-                a[:, :nk] = qr[:, :nv] if nk > nv else qr
-                t = np.zeros(nv)
-                t[: tau.size] = tau
-                Q = _dorgqr(a, t)[0]
-            else:
-                Q = _dorgqr(np.array(qr[:, :nv], order="F"), tau[:nv])[0]
+            piv, rk, Q, R11, vp = _factor_held(K, k, nv, rank_tol)
             Q1 = Q[:, :rk]
-            R11 = qr[:rk, :rk]
-            if rk:
-                vp = Q1 @ _dtrtrs(R11, k[piv[:rk]], lower=0, trans=1)[0]
-            else:
-                vp = np.zeros(nv)
-            if rk < nk:
+            if rk < K.shape[0]:
                 # dependent held rows get no multiplier: equality rows must be
                 # consistent, carried rows only within their bounds (checked below)
                 dep = piv[rk:]
@@ -237,74 +208,166 @@ def solve_guess(
                                    > CONSISTENCY_TOL * ks[dep_e]).any():
                     return None, Guess(s, w), it + 1
                 dep_g = held[dep[dep >= me] - me]
-            Q2 = Q[:, rk:]
-            if M.shape[0] and rk < nv:
-                MQ = M @ Q2
-                rhs = d - M @ vp
-                if ref is None:
-                    v = vp + Q2 @ lstsq(MQ, rhs, rank_tol, scale)
-                else:
-                    zr = Q2.T @ ref
-                    v = vp + Q2 @ (zr + lstsq(MQ, rhs - MQ @ zr, rank_tol, scale))
-            elif rk < nv and ref is not None:
-                v = vp + Q2 @ (Q2.T @ ref)
-            else:
-                v = vp
-        elif M.shape[0]:
-            if ref is None:
-                v = lstsq(M, d, rank_tol, scale)
-            else:
-                v = ref + lstsq(M, d - M @ ref, rank_tol, scale)
+            v = _in_null_space(M, d, vp, Q[:, rk:], rk, nv, ref, rank_tol, scale)
         else:
-            v = np.zeros(nv) if ref is None else ref.copy()
+            v = _free_least_squares(M, d, nv, ref, rank_tol, scale)
         if not np.isfinite(v).all():
             break
         # primal checks and the next guess
         ok = True
         s_new = s
         if mc:
-            cv = C @ v
-            out_up = cv > up_in
-            out_lo = cv < lo_in
-            bad = np.where(s == 0, out_up | out_lo,
-                           np.where(s > 0, cv < up_out, cv > lo_out))
-            if bad.any():
-                ok = False
-                # only the rows that fail their check change state
-                s_new = np.where(bad, out_up.astype(np.int8) - out_lo.astype(np.int8),
-                                 s).astype(np.int8)
+            ok, s_new = _check_level_rows(C @ v, s, lo_in, up_in, lo_out, up_out)
         w_new = w
         if p:
-            gv = G @ v
-            over = gv > gu_in
-            under = gv < gl_in
-            free = w == 0
-            if dep_g.size:
-                free[dep_g] = True
-            viol = (over | under) & free
             wrong = None
             if rk and nheld:
-                grad = M.T @ (M @ v - d)
-                mu = np.zeros(K.shape[0])
-                mu[piv[:rk]] = _dtrtrs(R11, -(Q1.T @ grad), lower=0)[0]
-                mug = mu[me:]
-                dtol = DUAL_TOL * max(1.0, float(np.abs(M).max()) * max(1.0, float(
-                    np.abs(d).max()))) if M.size else DUAL_TOL
-                bad_mu = np.where(wp, mug < -dtol, mug > dtol)
-                if bad_mu.any() and not (rk < K.shape[0] and _signed_multipliers(
-                        K, me, wp, grad, dtol)):
-                    wrong = held[bad_mu]
-            if wrong is not None or viol.any():
-                ok = False
-                w_new = np.where(viol, over.astype(np.int8) - under.astype(np.int8), w).astype(
-                    np.int8)
-                if wrong is not None:
-                    w_new[wrong] = 0
+                wrong = _wrong_multipliers(M, d, v, K, me, piv, rk, R11, Q1, wp, held)
+            ok_w, w_new = _check_carried_rows(G @ v, w, gl_in, gu_in, dep_g, wrong)
+            ok = ok and ok_w
         if ok:
             return v, Guess(s, w), it + 1
         s = s_new
         w = w_new
     return None, Guess(s, w), len(seen)
+
+
+def _stack(A: np.ndarray, b: np.ndarray, C: np.ndarray, lo: np.ndarray, up: np.ndarray,
+           s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Return ``(M, d)``: the rows ``A`` and the level rows guessed violated, at their bounds."""
+    sel = np.flatnonzero(s)
+    M = np.concatenate((A, C[sel]))
+    d = np.concatenate((b, np.where(s[sel] > 0, up[sel], lo[sel])))
+    return M, d
+
+
+def _factor_held(K: np.ndarray, k: np.ndarray, nv: int, rank_tol: float
+                 ) -> tuple[np.ndarray, int, np.ndarray, np.ndarray, np.ndarray]:
+    """Factorise the held rows ``K v = k`` by a pivoted QR of ``K^T``.
+
+    Returns:
+        ``(piv, rk, Q, R11, vp)``: the pivot order, the rank, the full orthogonal factor
+        ``(nv, nv)`` (its first ``rk`` columns span the rows), the triangular block
+        ``(rk, rk)`` and the minimum-norm solution ``vp`` of the independent rows.
+
+    """
+    qr, jpvt, tau, _work, _info = _dgeqp3(K.T.copy(order="F"))
+    piv = jpvt - 1
+    diag = np.abs(np.diagonal(qr))
+    rk = 0
+    if diag.size:
+        rk = int(np.count_nonzero(diag > rank_tol * float(diag[0])))
+    nk = K.shape[0]
+    if rk < nv:
+        a = np.zeros((nv, nv), order="F")
+        a[:, :nk] = qr[:, :nv] if nk > nv else qr
+        t = np.zeros(nv)
+        t[: tau.size] = tau
+        Q = _dorgqr(a, t)[0]
+    else:
+        Q = _dorgqr(np.array(qr[:, :nv], order="F"), tau[:nv])[0]
+    R11 = qr[:rk, :rk]
+    if rk:
+        vp = Q[:, :rk] @ _dtrtrs(R11, k[piv[:rk]], lower=0, trans=1)[0]
+    else:
+        vp = np.zeros(nv)
+    return piv, rk, Q, R11, vp
+
+
+def _in_null_space(M: np.ndarray, d: np.ndarray, vp: np.ndarray, Q2: np.ndarray, rk: int,
+                   nv: int, ref: np.ndarray | None, rank_tol: float, scale: float) -> np.ndarray:
+    """Return ``vp + Q2 z`` minimising ``||M v - d||`` (closest to ``ref`` where ties)."""
+    if M.shape[0] and rk < nv:
+        MQ = M @ Q2
+        rhs = d - M @ vp
+        if ref is None:
+            return vp + Q2 @ lstsq(MQ, rhs, rank_tol, scale)
+        zr = Q2.T @ ref
+        return vp + Q2 @ (zr + lstsq(MQ, rhs - MQ @ zr, rank_tol, scale))
+    if rk < nv and ref is not None:
+        return vp + Q2 @ (Q2.T @ ref)
+    return vp
+
+
+def _free_least_squares(M: np.ndarray, d: np.ndarray, nv: int, ref: np.ndarray | None,
+                        rank_tol: float, scale: float) -> np.ndarray:
+    """Return the minimiser of ``||M v - d||`` with nothing held (closest to ``ref``)."""
+    if M.shape[0]:
+        if ref is None:
+            return lstsq(M, d, rank_tol, scale)
+        return ref + lstsq(M, d - M @ ref, rank_tol, scale)
+    return np.zeros(nv) if ref is None else ref.copy()
+
+
+def _wrong_multipliers(M: np.ndarray, d: np.ndarray, v: np.ndarray, K: np.ndarray, me: int,
+                       piv: np.ndarray, rk: int, R11: np.ndarray, Q1: np.ndarray,
+                       wp: np.ndarray, held: np.ndarray) -> np.ndarray | None:
+    """Return the held carried rows whose multipliers have the wrong sign (``None``: none).
+
+    The multipliers of the independent held rows solve ``K^T mu = -grad`` with ``grad``
+    the cost's gradient at ``v``; where they are not unique (dependent held rows),
+    any set of the right signs will do (:func:`_signed_multipliers`).
+    """
+    grad = M.T @ (M @ v - d)
+    mu = np.zeros(K.shape[0])
+    mu[piv[:rk]] = _dtrtrs(R11, -(Q1.T @ grad), lower=0)[0]
+    mug = mu[me:]
+    dtol = DUAL_TOL * max(1.0, float(np.abs(M).max()) * max(1.0, float(
+        np.abs(d).max()))) if M.size else DUAL_TOL
+    bad_mu = np.where(wp, mug < -dtol, mug > dtol)
+    if bad_mu.any() and not (rk < K.shape[0] and _signed_multipliers(K, me, wp, grad, dtol)):
+        return held[bad_mu]
+    return None
+
+
+def _check_carried_rows(gv: np.ndarray, w: np.ndarray, gl_in: np.ndarray, gu_in: np.ndarray,
+                        dep_g: np.ndarray, wrong: np.ndarray | None) -> tuple[bool, np.ndarray]:
+    """Check the carried rows against the guess ``w``; return whether all pass and the next ``w``.
+
+    Free rows (and held rows the QR found dependent) must be within their bounds (with
+    their tolerance, ``gl_in``, ``gu_in``); violated ones are held at the bound they cross.
+    Rows ``wrong`` (held with a wrong-sign multiplier) are released.
+    """
+    over = gv > gu_in
+    under = gv < gl_in
+    free = w == 0
+    if dep_g.size:
+        free[dep_g] = True
+    viol = (over | under) & free
+    if wrong is None and not viol.any():
+        return True, w
+    w_new = np.where(viol, over.astype(np.int8) - under.astype(np.int8), w).astype(np.int8)
+    if wrong is not None:
+        w_new[wrong] = 0
+    return False, w_new
+
+
+def _release_stale(side: np.ndarray, lo: np.ndarray, up: np.ndarray) -> np.ndarray:
+    """Return ``side`` (``s`` or ``w``) with the rows held at an infinite bound set to 0."""
+    if side.any():
+        stale = ((side > 0) & ~np.isfinite(up)) | ((side < 0) & ~np.isfinite(lo))
+        if stale.any():
+            side = side.copy()
+            side[stale] = 0
+    return side
+
+
+def _check_level_rows(cv: np.ndarray, s: np.ndarray, lo_in: np.ndarray, up_in: np.ndarray,
+                      lo_out: np.ndarray, up_out: np.ndarray) -> tuple[bool, np.ndarray]:
+    """Check the level rows against the guess ``s``; return whether all pass and the next ``s``.
+
+    A row guessed inside its band must be within it (``lo_in <= cv <= up_in``, the bounds
+    with their tolerance); a row guessed violated must be beyond its bound on that side
+    (``cv > up_out`` or ``cv < lo_out``). Only the rows that fail change state, to the side
+    they violate (0 inside).
+    """
+    out_up = cv > up_in
+    out_lo = cv < lo_in
+    bad = np.where(s == 0, out_up | out_lo, np.where(s > 0, cv < up_out, cv > lo_out))
+    if not bad.any():
+        return True, s
+    return False, np.where(bad, out_up.astype(np.int8) - out_lo.astype(np.int8),
+                           s).astype(np.int8)
 
 
 def _signed_multipliers(
