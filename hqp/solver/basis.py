@@ -107,6 +107,7 @@ class BasisAlgorithm:
         self.memory = WarmStart()
         self.buffers = QPBuffers(level_rows_first=True)
         self.needed_qp: dict[Any, tuple[int, int, int]] = {}
+        self._qp_count = 0  # QPs of the current solve
 
     def reset(self) -> None:
         """Forget the warm start's memory."""
