@@ -1,5 +1,5 @@
 // The basis algorithm of the native solver; see hierarchy.hpp. Each step names the step
-// of hqp.solver.hierarchy.HierarchicalSolver._solve_basis it follows.
+// of hqp.solver.basis.BasisAlgorithm it follows.
 #include "solver/hierarchy.hpp"
 
 #include <algorithm>
@@ -443,7 +443,7 @@ void Hierarchy::report(Index k) {
 }
 
 double Hierarchy::sigma_level(Index k) {
-  // the m-th singular value of [A; C_active] Zb (hqp.solver.hierarchy._sigma_level)
+  // the m-th singular value of [A; C_active] Zb (hqp.solver.report.sigma_level)
   const LevelData& lv = levels_[k];
   Slot& slot = slots_[k];
   const LevelResult& out = results_[k];

@@ -1,5 +1,5 @@
 // The strict lexicographic solver of the native core: the basis algorithm with its
-// active-set warm start (the C++ twin of hqp.solver.hierarchy.HierarchicalSolver with
+// active-set warm start (the C++ twin of hqp.solver.basis.BasisAlgorithm, run by HierarchicalSolver with
 // algorithm="basis"; see that module's docstring for the method and the constants).
 //
 // Structure and workspace apart (pinocchio's Model/Data): a Hierarchy is sized by the

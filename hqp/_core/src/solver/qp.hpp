@@ -1,6 +1,6 @@
 // The compiled QP of the native solver's cold and degenerate levels: DAQP (vendored C
 // sources), with the Python daqp backend's settings and the hierarchy's retries on
-// relaxed bounds (hqp/solver/daqp_.py, hqp.solver.hierarchy._qp); where nothing finite
+// relaxed bounds (hqp/solver/backends/daqp.py, hqp.solver.qp.solve_qp); where nothing finite
 // comes back, ProxQP's header-only dense solver (proxsuite wheel) as the last resort.
 #pragma once
 
