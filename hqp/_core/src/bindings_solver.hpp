@@ -92,13 +92,7 @@ class PySolver {
     LevelData& norm = data[k];
     if (norm.A.rows() != n || norm.A.cols() != n || norm.kind != LevelKind::kNorm ||
         !norm.b.isZero(0.0)) {
-      norm.A.setIdentity(n, n);
-      norm.b.setZero(n);
-      norm.C.resize(0, n);
-      norm.lo.resize(0);
-      norm.up.resize(0);
-      norm.kind = LevelKind::kNorm;
-      norm.finish();
+      norm.set_norm(n);
     }
     norm.a_scale = 1.0;
     std::string error;

@@ -127,15 +127,7 @@ void NativeStep::layout_levels() {
     lv.up.setZero(nin[k]);
     lv.kind = LevelKind::kUser;
   }
-  LevelData& norm = data.back();
-  norm.A.setIdentity(n_, n_);
-  norm.b.setZero(n_);
-  norm.C.resize(0, n_);
-  norm.lo.resize(0);
-  norm.up.resize(0);
-  norm.kind = LevelKind::kNorm;
-  norm.finish();
-  norm.a_scale = 1.0;
+  data.back().set_norm(n_);
   laid_out_ = true;
 }
 

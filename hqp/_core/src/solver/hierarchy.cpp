@@ -34,6 +34,17 @@ double mth_singular(const VectorXd& s, Index m, Index r, double thr) {
 
 }  // namespace
 
+void LevelData::set_norm(Index n) {
+  A.setIdentity(n, n);
+  b.setZero(n);
+  C.resize(0, n);
+  lo.resize(0);
+  up.resize(0);
+  kind = LevelKind::kNorm;
+  finish();
+  a_scale = 1.0;
+}
+
 void LevelData::finish() {
   const Index mi = C.rows();
   los.resize(mi);

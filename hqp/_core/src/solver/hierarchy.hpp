@@ -40,6 +40,8 @@ struct LevelData {
   LevelKind kind = LevelKind::kUser;
   /// Scales and flags from A, b, C, lo, up (the fields of hqp.solver.level.CheckedLevel).
   void finish();
+  /// The final minimum-norm level over n variables (identity rows, zero target).
+  void set_norm(Index n);
 };
 
 /// What a solve achieved on one level (hqp.solver.LevelReport).
