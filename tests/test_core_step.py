@@ -115,3 +115,19 @@ def test_native_step_meets_the_contract_at_agitated_states(name):
         best, spread = refs.min(axis=0), np.ptp(refs, axis=0)
         assert np.all(costs - best <= 1e-6 * np.maximum(1.0, best) + spread), (costs, refs)
         _close(tau, joint_torques(model, layout, x), "tau", 1e-10)
+
+
+def test_mirror_refuses_what_it_cannot_run():
+    """A state-dependent joint-limit bound (qdd_max=None) and a task without a kernel."""
+    from hqp.control.native import NotSupported
+    from hqp.tasks.effort import EffortTask
+    from hqp.tasks.joint_limits import JointLimits
+
+    robot, ctrl = _standing("g1")
+    ctrl.stack.add(JointLimits(name="jl_state", qdd_max=None), "joint_limits")
+    with pytest.raises(NotSupported, match="qdd_max=None"):
+        NativeStepMirror(robot, ctrl)
+    robot, ctrl = _standing("g1")
+    ctrl.stack.add(EffortTask(ctrl.model), "posture")
+    with pytest.raises(NotSupported, match="no native kernel"):
+        NativeStepMirror(robot, ctrl)

@@ -103,6 +103,8 @@ class NativeStepMirror:
         elif isinstance(task, TorqueLimits):
             s.add_torque_limits(level, w, np.asarray(task.bounds(model), dtype=float))
         elif isinstance(task, JointLimits):
+            if task.qdd_max is None:  # A recomputed at every state: not pushed down (yet)
+                raise NotSupported(f"{task.where()}: qdd_max=None (a state-dependent bound)")
             handle = s.add_joint_limits(
                 level, w, model.q_lower + task.position_margin,
                 model.q_upper - task.position_margin, task.velocity_scale * model.v_max,

@@ -137,7 +137,6 @@ std::string NativeStep::step(const Eigen::Ref<const Eigen::VectorXd>& q,
   RobotCore& robot = *robot_;
   robot.update(q, v);
   contact_dynamics(robot, layout_, G_, J6_);
-  const Index nv = robot.nv();
   auto& data = hierarchy_.levels();
   for (const Entry& e : entries_) {
     LevelData& lv = data[std::size_t(built_of_[std::size_t(e.level)])];
@@ -190,7 +189,6 @@ std::string NativeStep::step(const Eigen::Ref<const Eigen::VectorXd>& q,
       up *= e.sqrt_w;
     }
   }
-  (void)nv;
   for (std::size_t k = 0; k < used_.size(); ++k) data[k].finish();
   const std::string error = hierarchy_.solve(n_, Index(used_.size()));
   if (!error.empty()) return error;
