@@ -131,3 +131,17 @@ def test_mirror_refuses_what_it_cannot_run():
     ctrl.stack.add(EffortTask(ctrl.model), "posture")
     with pytest.raises(NotSupported, match="no native kernel"):
         NativeStepMirror(robot, ctrl)
+
+
+def test_controller_suite_row_of_the_native_core_is_the_native_step():
+    """The contract's whole-step row ``hqp/basis/native`` runs the native step."""
+    from hqp.bench import suite_controller as sc
+
+    assert sc.NATIVE_STEP == "hqp/basis/native"
+    robot = robots.load("g1")
+    sts = sc.states("g1", count=2)
+    stepper = sc._Stepper(sc.NATIVE_STEP, robot, sts)
+    x, tau = stepper()
+    assert stepper.mirror is not None and np.isfinite(tau).all()
+    n, levels, rows = sc._shape({sc.NATIVE_STEP: stepper})
+    assert n == x.size and levels >= 5 and rows > n

@@ -2,10 +2,11 @@
 
 Per robot (``paper-humanoid``, ``g1``, ``talos``), the same states are handed to:
 
-- ``hqp/<algorithm>/<backend>``: :func:`hqp.control.presets.standing_controller` (both soles in
+- ``hqp/<algorithm>/<backend>`` (but ``hqp/basis/native``, below):
+  :func:`hqp.control.presets.standing_controller` (both soles in
   contact, centre of mass, trunk upright, posture, torque, friction, centre-of-pressure and
   viable joint limits; ``diagnostics="residuals"``: per-task residual flags, no per-task SVDs);
-- ``hqp/step/native``: the native control step (:class:`hqp.control.native.NativeStepMirror`:
+- ``hqp/basis/native``: the native control step (:class:`hqp.control.native.NativeStepMirror`:
   the same standing stack in one call into the C++ core: model pass, rows, strict hierarchy,
   torques; no feasibility report yet);
 - ``nullspace``: :func:`hqp.control.presets.standing_nullspace_controller` (same stack, joint limits
@@ -46,8 +47,8 @@ from hqp.solver import ALGORITHMS, available_backends, supports
 
 ROBOTS = ("paper-humanoid", "g1", "talos")
 
-NATIVE_STEP = "hqp/step/native"
-"""The configuration of the native control step."""
+NATIVE_STEP = "hqp/basis/native"
+"""The native core's whole step (the contract's row name): the stack mirrored into C++."""
 """Robots of the suite."""
 
 T0 = 1.0
@@ -81,9 +82,7 @@ def configurations(backends: Sequence[str] | None = None,
                    algorithms: Sequence[str] = ALGORITHMS) -> list[str]:
     """Return the configuration names: ``hqp/<algorithm>/<backend>``, ``nullspace``, ``placo``."""
     bk = list(backends) if backends is not None else available_backends()
-    native = [NATIVE_STEP] if supports("native", "basis") and (
-        backends is None or "native" in backends) else []
-    return [f"hqp/{a}/{b}" for a in algorithms for b in bk if supports(b, a)] + native + [
+    return [f"hqp/{a}/{b}" for a in algorithms for b in bk if supports(b, a)] + [
         "nullspace", "placo"]
 
 
@@ -109,6 +108,7 @@ class _Stepper:
             q, v = sts[0]
             ctrl.step(RobotState(q, v, T0), T0)
             self.mirror = NativeStepMirror(robot, ctrl)
+            self.setup = ctrl  # its built stack gives the row's shape
             self.ctrl = None
         elif name == "nullspace":
             self.ctrl = standing_nullspace_controller(robot, dt=dt, diagnostics="residuals")
@@ -197,10 +197,11 @@ def _shape(steppers: dict[str, _Stepper]) -> tuple[int | None, int | None, int |
     ref_st = next((st for n, st in steppers.items() if n.startswith("hqp/")), None)
     if ref_st is None:
         return None, None, None
-    levels = ref_st.ctrl.last_built.levels  # type: ignore[union-attr]
+    ctrl = ref_st.ctrl if ref_st.mirror is None else ref_st.setup
+    levels = ctrl.last_built.levels  # type: ignore[union-attr]
     n_rows = sum(0 if lv.A is None else np.shape(lv.A)[0] for lv in levels)
     n_rows += sum(0 if lv.C is None else np.shape(lv.C)[0] for lv in levels)
-    return ref_st.ctrl.layout.n, len(levels), n_rows  # type: ignore[union-attr]
+    return ctrl.layout.n, len(levels), n_rows  # type: ignore[union-attr]
 
 
 def _measured(row: dict[str, Any], st: _Stepper, t: Samples, probe_only: bool) -> None:
