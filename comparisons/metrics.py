@@ -13,7 +13,11 @@ The definitions are those of the command-line contract (docs/architecture.md,
   (0 when none) [rad];
 - ``step_time_median_ms``: the median wall-clock time of a control step [ms];
 - ``fell``: the pelvis went below 0.6 x its standing height, or anything but
-  a foot touched the floor.
+  a foot touched the floor;
+- ``realtime_factor``: simulated seconds per wall-clock second of the closed
+  loop, MuJoCo and logging included;
+- ``contacts``: ``"unilateral"`` (MuJoCo's contacts, the default) or
+  ``"welded"`` (the papers' rigid feet).
 
 Per-axis centre-of-gravity errors (``cog_error_x_*``, ``cog_error_y_*``) and
 the number of clipped torque entries (``torque_clipping_count``) and of
@@ -65,6 +69,10 @@ class Trace:
             sample (the run stops there) [s] (``None``: none).
         safe_mode: Whether the controller sent its safe command (its solve failed)
             at each step ``(N,)``.
+        realtime_factor: Simulated seconds per wall-clock second of the closed loop,
+            MuJoCo included (``None``: not measured).
+        contacts: How the feet touched the floor: ``"unilateral"`` (MuJoCo's contacts) or
+            ``"welded"`` (the papers' rigid feet).
         extra: Further named series ``(N, ...)`` for plots (e.g. obstacle distance).
 
     """
@@ -85,6 +93,8 @@ class Trace:
     step_ms: np.ndarray | None = None
     safe_mode: np.ndarray | None = None
     fell_at: float | None = None
+    realtime_factor: float | None = None
+    contacts: str = "unilateral"
     extra: dict[str, np.ndarray] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
@@ -186,6 +196,8 @@ def run_metrics(trace: Trace) -> dict[str, float | int | bool | None]:
             int(np.count_nonzero(trace.safe_mode)) if trace.safe_mode is not None else 0
         ),
         "fell": fell(trace),
+        "realtime_factor": trace.realtime_factor,
+        "contacts": trace.contacts,
     }
     if trace.hand is not None and trace.hand_goal is not None:
         out["hand_final_distance_cm"] = 1e2 * float(

@@ -92,5 +92,6 @@ def trace_from_log(
         step_ms=1e3 * np.asarray(log.step_time),
         safe_mode=np.asarray(log.safe_mode, dtype=bool),
         fell_at=getattr(log, "fell_at", None),
+        realtime_factor=log.realtime_factor if log.wall_time > 0.0 else None,
         extra=dict(extra or {}),
     )

@@ -68,9 +68,9 @@ def test_a_subcommand_that_fails_to_import_fails_loudly(monkeypatch):
 
 COMPARE_RUN_KEYS = {"controller", "hierarchy", "cog_error_max_mm", "cog_error_final_mm",
                     "hand_final_distance_cm", "joint_limit_violation_max_rad",
-                    "step_time_median_ms", "fell"}
+                    "step_time_median_ms", "fell", "realtime_factor", "contacts"}
 RUN_KEYS = {"behavior", "robot", "duration_s", "fell", "phases", "steps", "feasibility_events",
-            "max_torque_jump_nm"}
+            "max_torque_jump_nm", "realtime_factor"}
 BENCH_ROW_KEYS = {"robot", "solver", "levels", "n", "median_ms", "p95_ms"}
 
 
@@ -82,6 +82,7 @@ def test_compare_end_to_end():
     for run in result["runs"]:
         assert COMPARE_RUN_KEYS <= set(run), COMPARE_RUN_KEYS - set(run)
         assert run["fell"] is False
+        assert run["contacts"] == "unilateral" and run["realtime_factor"] > 0.0, run
     pairs = {(r["controller"], r["hierarchy"]) for r in result["runs"]}
     assert {(c, h) for c in ("hqp", "nullspace") for h in ("shared", "cog-first")} <= pairs
     assert _hqp("compare", "no-such-scenario", "--json").returncode == 2
@@ -96,6 +97,7 @@ def test_run_end_to_end():
     assert data["fell"] is False and data["phases"] == ["stand"] and data["steps"] == 0
     assert data["duration_s"] == pytest.approx(0.02)
     assert isinstance(data["feasibility_events"], list)
+    assert data["realtime_factor"] > 0.0
     assert _hqp("run", "no-such-behavior", "--json").returncode == 2
 
 

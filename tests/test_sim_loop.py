@@ -49,6 +49,19 @@ def test_clocks_and_hooks(robot):
         assert out.t_end == pytest.approx(0.01)
 
 
+def test_realtime_factor_is_simulated_over_wall_time(robot):
+    """The loop's wall clock covers the controller, MuJoCo and the hooks."""
+    import time
+
+    sim = Simulator(robot)
+    nap = 2e-3  # a hook that sleeps 2 ms per 1 ms step: the run is at most half real time
+
+    out = closed_loop(sim, Recorder(sim.na), 0.02, before_step=lambda step: time.sleep(nap))
+    assert out.wall_time >= 20 * nap
+    assert 0.0 < out.realtime_factor <= 0.5
+    assert out.realtime_factor == pytest.approx(out.t_end / out.wall_time)
+
+
 def test_events_run_once_at_their_time_and_pushes_add_up(robot):
     sim = Simulator(robot)
     fired = []

@@ -251,6 +251,7 @@ def run_behavior(
                           after_step=meter.after_step, clock="steps", stop_on_fall=stop_on_fall,
                           progress=None if progress is None else lambda t: progress(t, total))
     metrics = meter.metrics(outcome.t_end, getattr(ctrl, "backend", None))
+    metrics["realtime_factor"] = round(outcome.realtime_factor, 3)
     if recorder is not None:
         metrics["video"] = str(recorder.close())
     metrics.update(behavior.metrics())

@@ -120,6 +120,7 @@ class Outcome:
         fell_at: Control time of the step after which the robot had fallen (``None``: never).
         fall_reason: Why (:meth:`~hqp.sim.simulator.Simulator.fall_reason`).
         events: ``(t, name)`` of the events applied.
+        wall_time: Wall-clock duration of the whole loop [s]: controller, MuJoCo, the hooks.
 
     """
 
@@ -128,11 +129,17 @@ class Outcome:
     fell_at: float | None = None
     fall_reason: str | None = None
     events: list[tuple[float, str]] = field(default_factory=list)
+    wall_time: float = 0.0
 
     @property
     def fell(self) -> bool:
         """Whether the robot fell."""
         return self.fell_at is not None
+
+    @property
+    def realtime_factor(self) -> float:
+        """Simulated seconds per wall-clock second of the loop (0 before any step)."""
+        return self.t_end / self.wall_time if self.wall_time > 0.0 else 0.0
 
 
 class _Sensor:
@@ -231,6 +238,7 @@ def closed_loop(
     outcome = Outcome()
     next_event = 0
     reading = sim.contacts()
+    loop_start = time.perf_counter()
     for k in range(int(round(duration / sim.dt))):
         t = sim.time if clock == "simulator" else k * sim.dt
         if next_event < len(timed) and timed[next_event].t <= t + 1e-12:
@@ -252,6 +260,7 @@ def closed_loop(
         outcome.t_end = sim.time if clock == "simulator" else (k + 1) * sim.dt
         if after_step is not None:
             after_step(step, reading)
+        outcome.wall_time = time.perf_counter() - loop_start
         reason = sim.fall_reason(reading)
         if reason is not None and outcome.fell_at is None:
             outcome.fell_at, outcome.fall_reason = t, reason

@@ -56,6 +56,7 @@ class Log:
         events: ``(t, name)`` of the events applied.
         standing_height: Base height of the robot's standing configuration [m].
         fell_at: Time of the first fall (``None`` if it did not fall).
+        wall_time: Wall-clock duration of the closed loop [s] (controller, MuJoCo, logging).
 
     """
 
@@ -82,6 +83,18 @@ class Log:
     events: list[tuple[float, str]] = field(default_factory=list)
     standing_height: float = 0.0
     fell_at: float | None = None
+    wall_time: float = 0.0
+
+    @property
+    def realtime_factor(self) -> float:
+        """Simulated seconds per wall-clock second of the closed loop (0 when nothing ran)."""
+        simulated = float(self.t[-1] - self.t[0]) + self.dt if self.t.size else 0.0
+        return simulated / self.wall_time if self.wall_time > 0.0 else 0.0
+
+    @property
+    def dt(self) -> float:
+        """Control period of the run [s] (0 with fewer than two steps)."""
+        return float(self.t[1] - self.t[0]) if self.t.size > 1 else 0.0
 
     @property
     def fell(self) -> bool:
@@ -145,6 +158,7 @@ class Log:
             "max_torque_jump_nm": self.max_torque_jump(),
             "step_time_median_ms": float(np.median(self.step_time) * 1e3),
             "step_time_p95_ms": float(np.percentile(self.step_time, 95) * 1e3),
+            "realtime_factor": self.realtime_factor,
         }
 
 
@@ -216,7 +230,7 @@ class _Recorder:
             strictness_suspended=arr("susp", ()).astype(bool),
             clipped=np.array(clipped, dtype=int), step_time=arr("time", ()),
             events=outcome.events, standing_height=robot.standing_height,
-            fell_at=outcome.fell_at,
+            fell_at=outcome.fell_at, wall_time=outcome.wall_time,
         )
 
 
