@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -23,15 +22,17 @@ from typing import Any
 
 import numpy as np
 
-from hqp.app.console import stdout_to_stderr
+from hqp.app.console import output_path_problem, progress_bar, stdout_to_stderr
 from hqp.behaviors.behavior import Behavior
 from hqp.behaviors.setup import prepare
 from hqp.behaviors.spec import BehaviorSpec
 from hqp.control.presets import CONTROLLER_NAMES
+from hqp.errors import InvalidInput, UnknownBackend
 from hqp.plots import Line, Panel, plot_panels
 from hqp.sim.loop import Step, closed_loop
 from hqp.sim.render import Video
 from hqp.sim.simulator import ContactReading, Simulator
+from hqp.solver.backends import known_backends
 
 STEP_MIN_AIR_TIME = 0.1
 """A footstep: the swing foot is out of contact at least this long [s] ..."""
@@ -236,7 +237,15 @@ def run_behavior(
             feet heights, normal forces, largest torque ratio; phase changes as vertical
             lines); its path is reported as ``plot`` in the metrics.
 
+    Raises:
+        InvalidInput: A duration that is not a positive number, an output path that cannot
+            be written (checked before anything is loaded).
+
     """
+    if duration is not None and not (np.isfinite(duration) and duration > 0):
+        raise InvalidInput(f"run_behavior: duration expects a positive number of seconds, "
+                           f"got {duration}")
+    check_output_paths(plot=plot, video=video)
     behavior, ctrl, robot_obj = prepare(source, robot=robot, controller=controller,
                                         inputs=inputs, overrides=overrides, backend=backend)
     spec = behavior.spec
@@ -305,7 +314,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
                    help="QP backend of the HQP controller: proxsuite, daqp, quadprog, osqp "
                         "(default: the behavior's, else proxsuite)")
     p.add_argument("--duration", type=float, default=None,
-                   help="simulated time [s] (default: the behavior's)")
+                   help="simulated time [s], a positive number (default: the behavior's)")
     p.add_argument("--inputs", default=None,
                    help="runtime inputs, JSON Lines of {\"t\": ..., \"<input>\": ...}")
     p.add_argument("--set", action="append", default=[], metavar="INPUT=JSON",
@@ -319,57 +328,114 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     return p
 
 
-def _overrides(items: list[str]) -> dict[str, Any] | str:
-    """Parse ``--set INPUT=JSON`` items; return the overrides, or the error message."""
+def _overrides(items: list[str]) -> dict[str, Any]:
+    """Parse ``--set INPUT=JSON`` items (their values are checked by the behavior's inputs).
+
+    Raises:
+        InvalidInput: An item that is not ``INPUT=JSON``.
+
+    """
     overrides: dict[str, Any] = {}
     for item in items:
         key, sep, value = item.partition("=")
-        if not sep:
-            return f"hqp run: --set expects INPUT=JSON, got {item!r}"
+        if not sep or not key:
+            raise InvalidInput(f"hqp run: --set expects INPUT=JSON, got {item!r}")
         try:
             overrides[key] = json.loads(value)
-        except json.JSONDecodeError as exc:
-            return f"hqp run: --set {key}: not JSON ({exc})"
+        except (json.JSONDecodeError, RecursionError) as exc:
+            raise InvalidInput(f"hqp run: --set {key}: not JSON ({exc})") from None
     return overrides
+
+
+def check_arguments(args: argparse.Namespace) -> dict[str, Any]:
+    """Check ``hqp run``'s arguments before anything is loaded; return the ``--set`` values.
+
+    Raises:
+        InvalidInput: A duration that is not a positive finite number, a backend given to
+            the null-space law, an unknown backend, an output path that cannot be written.
+
+    """
+    if args.duration is not None and not (np.isfinite(args.duration) and args.duration > 0):
+        raise InvalidInput(f"hqp run: --duration expects a positive number of seconds, "
+                           f"got {args.duration}")
+    if args.backend is not None:
+        if args.controller != "hqp":
+            raise InvalidInput(f"hqp run: --backend applies to the HQP controller, not to "
+                               f"--controller {args.controller}")
+        if args.backend not in known_backends():
+            raise UnknownBackend(args.backend, known_backends())
+    check_output_paths(plot=args.plot, video=args.video, prefix="--")
+    return _overrides(args.set)
+
+
+def check_output_paths(prefix: str = "", **paths: str | Path | None) -> None:
+    """Refuse output paths that cannot be written, before a run.
+
+    Raises:
+        InvalidInput: Names the option and says why.
+
+    """
+    for name, path in paths.items():
+        why = None if path is None else output_path_problem(path)
+        if why is not None:
+            raise InvalidInput(f"{prefix}{name} {str(path)!r}: {why}")
 
 
 def _summary(data: dict[str, Any]) -> str:
     """Return the readable summary of ``hqp run`` (without ``--json``)."""
     outcome = f"FELL ({data['fall_reason']})" if data["fell"] else "did not fall"
+    moves = [f"footsteps: {data['steps']}"]
+    if data["flight_time_s"] > 0:
+        moves.append(f"longest flight: {data['flight_time_s']:.3f} s")
     lines = [
         f"behavior {data['behavior']} on {data['robot']} ({data['controller']}), "
         f"{data['duration_s']:.2f} s: {outcome}",
         f"  phases: {' -> '.join(data['phases'])}",
-        f"  footsteps: {data['steps']}, longest flight: {data['flight_time_s']:.3f} s, "
-        f"max |tau|/tau_max: {data['max_torque_ratio']:.2f}, largest torque change in "
-        f"one step: {data['max_torque_jump_nm']:.1f} N m",
+        f"  {', '.join(moves)}",
+        f"  max |tau|/tau_max: {data['max_torque_ratio']:.2f}, largest torque change in one "
+        f"step: {data['max_torque_jump_nm']:.1f} N m",
     ]
     if "mean_speed_m_s" in data:
         lines.append(f"  mean speed {data['mean_speed_m_s']:.3f} m/s, CoM tracking error max "
                      f"{1e3 * data['com_tracking_error_max_m']:.1f} mm")
-    lines.append(f"  feasibility events: {len(data['feasibility_events'])}")
+    lines.extend(_events_summary(data["feasibility_events"]))
     return "\n".join(lines)
 
 
+def _events_summary(events: list[dict[str, Any]], most: int = 4) -> list[str]:
+    """Lines of the feasibility events: per task, how often it lost and regained its level."""
+    if not events:
+        return ["  feasibility events: none"]
+    lines = [f"  feasibility events: {len(events)} (--json for each)"]
+    groups: dict[tuple[str, str], list[dict[str, Any]]] = {}
+    for e in events:
+        groups.setdefault((e["task"], e["status"]), []).append(e)
+    words = {"infeasible": "in conflict with a higher level", "feasible": "satisfied again",
+             "safety": "sent to the safety phase"}
+    ranked = sorted(groups.items(), key=lambda kv: (-len(kv[1]), kv[0]))
+    for (task, kind), group in ranked[:most]:
+        first = group[0]
+        lines.append(f"    {task}: {words.get(kind, kind)} {len(group)} x, first at "
+                     f"{first['t']:.2f} s in {first['phase']}")
+    if len(ranked) > most:
+        lines.append(f"    ... {len(ranked) - most} more kinds")
+    return lines
+
+
 def command(args: argparse.Namespace) -> int:
-    """Run ``hqp run``; print JSON (``--json``) or a short summary. Returns 0, or 1 on a fall."""
-    overrides = _overrides(args.set)
-    if isinstance(overrides, str):
-        print(overrides, file=sys.stderr)
-        return 2
+    """Run ``hqp run``; print JSON (``--json``) or a short summary. Returns 0, or 1 on a fall.
 
-    def progress(t: float, total: float) -> None:
-        if int(round(t * 10)) % 10 == 0:
-            print(f"\r{args.behavior}: t = {t:5.1f} / {total:.1f} s", end="", file=sys.stderr,
-                  flush=True)
-
+    The arguments are checked first (:func:`check_arguments`); a progress bar on stderr
+    follows the simulated time (:func:`hqp.app.console.progress_bar`).
+    """
+    overrides = check_arguments(args)
     # C libraries (PlaCo) print to stdout: keep stdout for the one JSON object
     with stdout_to_stderr() as out:
-        result = run_behavior(args.behavior, robot=args.robot, controller=args.controller,
-                              duration=args.duration, inputs=args.inputs, overrides=overrides,
-                              video=args.video, progress=progress, backend=args.backend,
-                              plot=args.plot)
-        print(file=sys.stderr)
+        with progress_bar(args.behavior, "s") as progress:
+            result = run_behavior(args.behavior, robot=args.robot, controller=args.controller,
+                                  duration=args.duration, inputs=args.inputs,
+                                  overrides=overrides, video=args.video, progress=progress,
+                                  backend=args.backend, plot=args.plot)
         data = result.as_json()
         if args.json:
             out.write(json.dumps(data) + "\n")

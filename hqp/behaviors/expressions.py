@@ -8,6 +8,12 @@ feasibility flags, runtime inputs, planner outputs). Only literals, names,
 attribute access, indexing, arithmetic, comparisons, boolean operators, list
 literals (turned into arrays) and a few whitelisted functions are allowed;
 anything else is rejected when the file is loaded, never at run time.
+
+A behavior file is user input, so an expression is bounded when it is parsed: at most
+:data:`MAX_LENGTH` characters, :data:`MAX_NODES` syntax nodes and :data:`MAX_DEPTH` levels of
+nesting; every constant part is evaluated once at load (``9 ** 9 ** 9`` overflows there, not
+at run time) and powers are computed in floating point, so no expression runs unbounded.
+String constants are not values of this language (``when = "'abc'"`` would always be true).
 """
 
 from __future__ import annotations
@@ -22,12 +28,37 @@ import numpy as np
 
 from hqp.tasks.reference import min_jerk
 
+MAX_LENGTH = 1000
+"""Longest expression [characters]."""
+MAX_NODES = 400
+"""Most syntax nodes in one expression."""
+MAX_DEPTH = 50
+"""Deepest nesting of one expression's syntax tree."""
+MAX_EXPONENT = 1e3
+"""Largest magnitude of an exponent (``a ** b``)."""
+
+
+class ExpressionError(Exception):
+    """An expression is malformed or refers to a name that does not exist."""
+
+
+def _pow(base: Any, exponent: Any) -> Any:
+    """Return ``base ** exponent`` in floating point, with the exponent bounded."""
+    e = np.asarray(exponent, dtype=float)
+    if not np.all(np.abs(e) <= MAX_EXPONENT):
+        raise ExpressionError(f"exponent {exponent!r} out of range (|exponent| <= "
+                              f"{MAX_EXPONENT:g})")
+    with np.errstate(all="ignore"):
+        value = np.power(np.asarray(base, dtype=float), e)
+    return float(value) if value.ndim == 0 else value
+
+
 _BINARY: dict[type, Callable[[Any, Any], Any]] = {
     ast.Add: operator.add,
     ast.Sub: operator.sub,
     ast.Mult: operator.mul,
     ast.Div: operator.truediv,
-    ast.Pow: operator.pow,
+    ast.Pow: _pow,
 }
 _UNARY: dict[type, Callable[[Any], Any]] = {
     ast.USub: operator.neg,
@@ -59,10 +90,6 @@ FUNCTIONS: dict[str, Callable[..., Any]] = {
     "min_jerk": lambda u: min_jerk(float(u)),
 }
 """Functions callable from an expression."""
-
-
-class ExpressionError(Exception):
-    """An expression is malformed or refers to a name that does not exist."""
 
 
 class Namespace:
@@ -124,8 +151,8 @@ class Expression:
             return _eval(self.tree.body, env)
         except ExpressionError:
             raise
-        except (TypeError, ValueError, IndexError, ZeroDivisionError) as exc:
-            raise ExpressionError(f"cannot evaluate {self.source!r}: {exc}") from None
+        except (TypeError, ValueError, IndexError, ZeroDivisionError, OverflowError) as exc:
+            raise ExpressionError(f"cannot evaluate {_short(self.source)!r}: {exc}") from None
 
 
 def parse(source: str, allowed_names: Iterable[str] | None = None) -> Expression:
@@ -141,10 +168,16 @@ def parse(source: str, allowed_names: Iterable[str] | None = None) -> Expression
     """
     if not isinstance(source, str) or not source.strip():
         raise ExpressionError("expected a non-empty expression string")
+    if len(source) > MAX_LENGTH:
+        raise ExpressionError(f"expression of {len(source)} characters; at most {MAX_LENGTH} "
+                              "are allowed (split it into tasks or inputs)")
     try:
         tree = ast.parse(source.strip(), mode="eval")
     except SyntaxError as exc:
-        raise ExpressionError(f"syntax error in {source!r}: {exc.msg}") from None
+        raise ExpressionError(f"syntax error in {_short(source)!r}: {exc.msg}") from None
+    except (RecursionError, MemoryError):
+        raise ExpressionError(f"in {_short(source)!r}: nested too deeply") from None
+    _check_size(tree, source)
     names: set[str] = set()
     attributes: set[tuple[str, str]] = set()
     allowed = None if allowed_names is None else set(allowed_names)
@@ -184,9 +217,53 @@ def parse(source: str, allowed_names: Iterable[str] | None = None) -> Expression
             ),
         ):
             raise ExpressionError(f"in {source!r}: {type(node).__name__} is not allowed")
-        if isinstance(node, ast.Constant) and not isinstance(node.value, (int, float, bool, str)):
-            raise ExpressionError(f"in {source!r}: constant {node.value!r} is not allowed")
+        if isinstance(node, ast.Constant) and (
+                isinstance(node.value, str) or not isinstance(node.value, (int, float, bool))):
+            raise ExpressionError(f"in {source!r}: constant {node.value!r} is not allowed "
+                                  "(expected numbers, names and lists)")
+    _fold_constants(tree.body, source)
     return Expression(source, tree, frozenset(names), frozenset(attributes))
+
+
+def _short(source: str, n: int = 60) -> str:
+    return source if len(source) <= n else source[:n] + "..."
+
+
+def _check_size(tree: ast.AST, source: str) -> None:
+    """Reject a tree of more than :data:`MAX_NODES` nodes or :data:`MAX_DEPTH` levels."""
+    count = 0
+    todo: list[tuple[ast.AST, int]] = [(tree, 0)]
+    while todo:
+        node, depth = todo.pop()
+        count += 1
+        if count > MAX_NODES:
+            raise ExpressionError(f"in {_short(source)!r}: more than {MAX_NODES} terms")
+        if depth > MAX_DEPTH:
+            raise ExpressionError(f"in {_short(source)!r}: nested deeper than {MAX_DEPTH} "
+                                  "levels")
+        todo.extend((child, depth + 1) for child in ast.iter_child_nodes(node))
+
+
+def _constant(node: ast.AST) -> bool:
+    """Whether a subtree reads no name and calls nothing (its value is known at load)."""
+    return not any(isinstance(n, (ast.Name, ast.Attribute, ast.Call)) for n in ast.walk(node))
+
+
+def _fold_constants(node: ast.AST, source: str) -> None:
+    """Evaluate every largest constant arithmetic part once: it must give finite numbers."""
+    if isinstance(node, (ast.BinOp, ast.UnaryOp)) and _constant(node):
+        try:
+            with np.errstate(all="ignore"):
+                value = _eval(node, {})
+        except (ExpressionError, TypeError, ValueError, ZeroDivisionError,
+                OverflowError) as exc:
+            raise ExpressionError(f"in {_short(source)!r}: {exc}") from None
+        if not np.all(np.isfinite(np.asarray(value, dtype=float))):
+            raise ExpressionError(f"in {_short(source)!r}: {ast.unparse(node)} is not a "
+                                  "finite number")
+        return
+    for child in ast.iter_child_nodes(node):
+        _fold_constants(child, source)
 
 
 def _eval(node: ast.AST, env: Mapping[str, Any]) -> Any:

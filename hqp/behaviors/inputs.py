@@ -54,6 +54,8 @@ class InputStream:
             if self.path.suffix == ".json":
                 try:
                     data = json.loads(self.path.read_text())
+                except RecursionError:
+                    raise InvalidInput(f"inputs file {self.path}: nested too deeply") from None
                 except json.JSONDecodeError as exc:
                     raise InvalidInput(f"inputs file {self.path}: not JSON ({exc})") from None
                 samples = data.get("samples") if isinstance(data, dict) else data
@@ -75,7 +77,11 @@ class InputStream:
     def _add(self, obj: object, where: str) -> None:
         if not isinstance(obj, dict) or "t" not in obj:
             raise InvalidInput(f"inputs file {self.path}: {where}: expected an object with 't'")
-        t = float(obj["t"])
+        t = obj["t"]
+        if isinstance(t, bool) or not isinstance(t, (int, float)) or not np.isfinite(t):
+            raise InvalidInput(f"inputs file {self.path}: {where}: 't' expected a finite "
+                               f"time [s], got {t!r}")
+        t = float(t)
         if t < self._last_t:
             raise InvalidInput(f"inputs file {self.path}: {where}: times must not decrease")
         self._last_t = t
@@ -86,8 +92,12 @@ class InputStream:
             if spec is None:
                 raise InvalidInput(f"inputs file {self.path}: {where}: unknown input {key!r}; "
                                    f"inputs: {', '.join(sorted(self.specs)) or 'none'}")
-            arr = np.array(value, dtype=float)
-            if arr.shape != spec.shape or not np.isfinite(arr).all():
+            try:
+                arr = np.array(value, dtype=float)
+            except (TypeError, ValueError):
+                arr = np.full((0,), np.nan)  # not numbers: reported below
+            if value is None or isinstance(value, (bool, str)) or arr.shape != spec.shape \
+                    or not np.isfinite(arr).all():
                 raise InvalidInput(f"inputs file {self.path}: {where}: {key} expected shape "
                                    f"{list(spec.shape)} of finite numbers, got {value!r}")
             self._samples[key].append((t, arr))
@@ -107,6 +117,9 @@ class InputStream:
                 continue
             try:
                 obj = json.loads(line)
+            except RecursionError:
+                raise InvalidInput(f"inputs file {self.path}:{self._line}: nested too deeply") \
+                    from None
             except json.JSONDecodeError as exc:
                 raise InvalidInput(f"inputs file {self.path}:{self._line}: not JSON ({exc.msg})") \
                     from None

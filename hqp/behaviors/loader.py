@@ -107,6 +107,17 @@ class _Ctx:
         return best
 
 
+def file_error(path: Path | None, key: tuple[str | int, ...], message: str
+               ) -> BehaviorFileError:
+    """Return the error of a key of a behavior file found wrong after loading.
+
+    For checks that need the robot or the controller (see
+    :func:`hqp.behaviors.setup.prepare`); the message reads ``<file>:<line>: <key>: ...``.
+    """
+    text = path.read_text() if path is not None and path.is_file() else ""
+    return _Ctx(path, text).error(key, message)
+
+
 def library_names() -> list[str]:
     """Names of the bundled behaviors (``hqp/behaviors/library/*.toml``)."""
     return sorted(p.stem for p in LIBRARY.glob("*.toml"))
@@ -194,6 +205,9 @@ def parse_behavior(
     except tomllib.TOMLDecodeError as exc:
         name = str(path) if path is not None else "<behavior>"
         raise BehaviorFileError(f"{name}: not valid TOML: {exc}") from None
+    except RecursionError:
+        name = str(path) if path is not None else "<behavior>"
+        raise BehaviorFileError(f"{name}: arrays or tables nested too deeply") from None
     for key in data:
         if key not in _TOP:
             raise ctx.error((key,), f"unknown section; expected one of {', '.join(sorted(_TOP))}")

@@ -16,13 +16,14 @@ import numpy as np
 
 from hqp import robots
 from hqp.behaviors.behavior import Behavior
+from hqp.behaviors.expressions import ExpressionError
 from hqp.behaviors.factory import TaskFactory
 from hqp.behaviors.inputs import InputStream
-from hqp.behaviors.loader import load_behavior
+from hqp.behaviors.loader import file_error, load_behavior
 from hqp.behaviors.planners import PlacoWalkPlanner
 from hqp.behaviors.spec import BehaviorSpec, InputSpec
 from hqp.control.presets import constraint_controller
-from hqp.errors import BehaviorFileError, UnknownName
+from hqp.errors import BehaviorFileError, HQPError, InvalidInput, UnknownName
 
 
 def build_controller(
@@ -63,15 +64,65 @@ def _contacts_of(spec: BehaviorSpec, robot: Any) -> dict[str, str]:
 
 
 def _with_overrides(spec: BehaviorSpec, overrides: dict[str, Any]) -> BehaviorSpec:
-    """Return the spec with some input defaults replaced (by input name)."""
+    """Return the spec with some input defaults replaced (by input name).
+
+    Raises:
+        UnknownName: An input the behavior does not declare.
+        InvalidInput: A value that is not finite numbers of the input's shape.
+
+    """
     new_inputs = dict(spec.inputs)
     for k, v in overrides.items():
         if k not in new_inputs:
             raise UnknownName("input", k, new_inputs)
         old = new_inputs[k]
-        new_inputs[k] = InputSpec(k, old.shape, np.asarray(v, dtype=float).reshape(old.shape),
+        want = f"{list(old.shape)} (a number)" if old.shape == () else f"{list(old.shape)}"
+        try:
+            arr = np.asarray(v, dtype=float)
+        except (TypeError, ValueError):
+            arr = None
+        if (arr is None or isinstance(v, (bool, str)) or v is None
+                or arr.size != int(np.prod(old.shape)) or not np.isfinite(arr).all()):
+            raise InvalidInput(f"input {k!r}: expected finite numbers of shape {want}, "
+                               f"got {v!r}")
+        new_inputs[k] = InputSpec(k, old.shape, arr.reshape(old.shape),
                                   old.interpolate, old.description)
     return replace(spec, inputs=new_inputs)
+
+
+def _check_for_controller(spec: BehaviorSpec, behavior: Behavior, ctrl: Any,
+                          factory: TaskFactory) -> None:
+    """Check at load what only the controller can tell: levels and constant goals.
+
+    Raises:
+        BehaviorFileError: A level the controller does not have, or a constant goal the task
+            refuses (wrong length, not a rotation, ...); the message names file, line, key.
+
+    """
+    for pname, phase in spec.phases.items():
+        for ts in phase.action.tasks:
+            own = spec.tasks[ts.name]
+            if ts.level == own.level:
+                key: tuple[str | int, ...] = ("tasks", ts.name, "level")
+            elif phase.action.name == pname:
+                key = ("phases", pname, "levels", ts.name)
+            else:
+                key = ("actions", phase.action.name, "levels", ts.name)
+            try:
+                ctrl.stack.level_of(ts.level, behavior.tasks[ts.name])
+            except HQPError as exc:
+                raise file_error(spec.path, key, f"task {ts.name!r}: {exc}") from None
+            goals = {g: (("tasks", ts.name, g), e) for g, e in own.goals.items()}
+            goals.update({g: (("phases", pname, "goals", ts.name) if len(phase.goals[ts.name])
+                              == 1 else ("phases", pname, "goals", ts.name, g), e)
+                          for g, e in phase.goals.get(ts.name, {}).items()})
+            for gname, (gkey, expr) in goals.items():
+                if expr.names or expr.attributes:
+                    continue  # read from the sensed state: checked when it is evaluated
+                try:
+                    factory.set_goals(factory.build(own), own, {gname: expr.evaluate({})})
+                except (HQPError, ExpressionError) as exc:
+                    raise file_error(spec.path, gkey, str(exc)) from None
 
 
 def prepare(
@@ -127,4 +178,5 @@ def prepare(
                                    foot_width=2 * surface.half_width, where=str(path))
     behavior = Behavior(spec, ctrl, factory, inputs=stream, planner=planner,
                         standing=robot_obj.q_standing)
+    _check_for_controller(spec, behavior, ctrl, factory)
     return behavior, ctrl, robot_obj

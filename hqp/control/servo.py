@@ -34,6 +34,10 @@ from hqp.stack import Stack
 from hqp.tasks.dynamics import joint_torques
 from hqp.tasks.reference import min_jerk
 
+QUATERNION_TOLERANCE = 1e-3
+"""Largest deviation of the base quaternion's norm from 1 that a step normalises; beyond it
+the state is refused."""
+
 if TYPE_CHECKING:
     from hqp.model import RobotModel, RobotState
     from hqp.solver import HierarchicalSolver, Solution
@@ -275,6 +279,26 @@ class WholeBodyController(Controller):
 
     # -- one step ---------------------------------------------------------------------------
 
+    def _checked_q(self, q: np.ndarray, t: float) -> np.ndarray:
+        """``q`` with its base quaternion normalised (see :meth:`step`'s errors)."""
+        if not np.isfinite(t):
+            raise InvalidInput(f"WholeBodyController.step: t must be a finite time [s], got {t}")
+        if not self.model.floating_base:
+            return q
+        q = np.asarray(q, dtype=float)
+        if q.shape != (self.model.nq,):
+            return q  # the model's update names the shapes
+        norm = float(np.sqrt(q[3:7].dot(q[3:7])))
+        if norm == 1.0:
+            return q
+        if not abs(norm - 1.0) <= QUATERNION_TOLERANCE:
+            raise InvalidInput(f"WholeBodyController.step: the base quaternion q[3:7] has norm "
+                               f"{norm:.6g}; expected a unit quaternion (within "
+                               f"{QUATERNION_TOLERANCE:g}, normalised)")
+        q = q.copy()
+        q[3:7] /= norm
+        return q
+
     def step(self, state: RobotState, t: float) -> Command:
         """One control step: update, rows, solve, torques, feasibility report.
 
@@ -286,12 +310,15 @@ class WholeBodyController(Controller):
             The command; ``safe_mode`` when the solve failed or returned non-finite values.
 
         Raises:
-            InvalidInput: The state has the wrong shape or holds NaN or inf.
+            InvalidInput: ``t`` is not finite; the state has the wrong shape, holds NaN or
+                inf, or its base quaternion's norm is more than
+                :data:`QUATERNION_TOLERANCE` from 1 (within it, the quaternion is
+                normalised).
 
         """
         clock = time.perf_counter
         t0 = clock()
-        self.model.update(state.q, state.v)
+        self.model.update(self._checked_q(state.q, t), state.v)
         t1 = clock()
         x_prev = self.last_x
         declared = self.stack.layout_contacts()

@@ -30,7 +30,14 @@ from hqp.solver.backends import QPBackend, make_backend
 from hqp.solver.backends import native as native_
 from hqp.solver.basis import BasisAlgorithm
 from hqp.solver.cascade import CascadeAlgorithm
-from hqp.solver.level import CheckedLevel, Internal, Level, check_level, trusted_level
+from hqp.solver.level import (
+    CheckedLevel,
+    Internal,
+    Level,
+    beyond_range,
+    check_level,
+    trusted_level,
+)
 from hqp.solver.qp import forget_relaxations
 from hqp.solver.report import level_report, sigma_recursion
 from hqp.solver.solution import Solution
@@ -294,6 +301,8 @@ class HierarchicalSolver:
                       validate: bool, n_hint: int | None, t_start: float) -> Solution:
         """Solve on the C++ core; levels already in float64 arrays pass without a copy."""
         fast = native_.fast_rows(levels, n_hint)
+        if fast is not None and validate and beyond_range(levels):
+            fast = None  # bounds beyond BOUND_INF, entries beyond MAX_ENTRY: Python's checks
         if fast is None:
             checked, n = (_check_levels if validate else _trusted_levels)(levels, n_hint)
             rows, names = native_.checked_rows(checked), checked

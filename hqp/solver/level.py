@@ -91,14 +91,70 @@ def _where(k: int, name: str, field: str) -> str:
     return f"{label}, field {field}"
 
 
+BOUND_INF = 1e20
+"""Bounds beyond ``±BOUND_INF`` are absent: a lower bound below ``-BOUND_INF`` is ``-inf``, an
+upper bound above ``BOUND_INF`` is ``+inf`` (the convention of OSQP and DAQP); a lower bound
+above it or an upper bound below ``-BOUND_INF`` is refused."""
+MAX_ENTRY = 1e100
+"""Largest magnitude of an entry of ``A``, ``b`` or ``C`` (its square must not overflow)."""
+
+
 def _as_float(value: Any, k: int, name: str, field: str) -> np.ndarray:
     """Float64 view of ``value`` (no copy when it already is one)."""
     if type(value) is np.ndarray and value.dtype == np.float64:
         return value
     try:
-        return np.asarray(value, dtype=float)
+        arr = np.asarray(value)
+        if arr.dtype.kind == "c":
+            raise InvalidLevel(f"{_where(k, name, field)}: complex entries (a level is real)")
+        return np.asarray(arr, dtype=float)
     except (TypeError, ValueError) as exc:
+        if isinstance(exc, InvalidLevel):
+            raise
         raise InvalidLevel(f"{_where(k, name, field)}: not a numeric array ({exc})") from None
+
+
+def _huge_or_raise(arr: np.ndarray, k: int, name: str, field: str) -> None:
+    if arr.size and float(np.abs(arr).max()) > MAX_ENTRY:
+        i = int(np.argmax(np.abs(arr)))
+        raise InvalidLevel(f"{_where(k, name, field)}: entry {arr.flat[i]:g} beyond "
+                           f"±{MAX_ENTRY:g} (scale the level)")
+
+
+def _absent_bounds(lower: np.ndarray, upper: np.ndarray, k: int, name: str
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """Bounds beyond :data:`BOUND_INF` made infinite (copies only where one is)."""
+    if (lower > BOUND_INF).any():
+        raise InvalidLevel(f"{_where(k, name, 'lower')}: lower bound above {BOUND_INF:g}")
+    if (upper < -BOUND_INF).any():
+        raise InvalidLevel(f"{_where(k, name, 'upper')}: upper bound below {-BOUND_INF:g}")
+    if (lower < -BOUND_INF).any():
+        lower = np.where(lower < -BOUND_INF, -np.inf, lower)
+    if (upper > BOUND_INF).any():
+        upper = np.where(upper > BOUND_INF, np.inf, upper)
+    return lower, upper
+
+
+def beyond_range(levels: Any) -> bool:
+    """Whether a level holds values :func:`check_level` changes or refuses.
+
+    A finite bound beyond :data:`BOUND_INF`, or an entry of ``A``, ``b`` or ``C`` beyond
+    :data:`MAX_ENTRY`.
+    """
+    for level in levels:
+        for name in ("lower", "upper", "A", "b", "C"):
+            value = getattr(level, name, None)
+            if value is None:
+                continue
+            arr = np.abs(np.asarray(value, dtype=float))
+            if not arr.size:
+                continue
+            if name in ("lower", "upper"):
+                if (arr[np.isfinite(arr)] > BOUND_INF).any():
+                    return True
+            elif float(arr.max()) > MAX_ENTRY:
+                return True
+    return False
 
 
 def _finite_or_raise(arr: np.ndarray, k: int, name: str, field: str, allow_inf: bool) -> None:
@@ -130,6 +186,7 @@ def _matrix(value: Any, k: int, name: str, field: str) -> np.ndarray:
         raise InvalidLevel(f"{_where(k, name, field)}: expected a 2-D matrix, got shape "
                            f"{arr.shape}")
     _finite_or_raise(arr, k, name, field, False)
+    _huge_or_raise(arr, k, name, field)
     return arr
 
 
@@ -172,8 +229,11 @@ def check_level(level: Any, k: int, n: int | None) -> CheckedLevel:
         The validated level.
 
     Raises:
-        InvalidLevel: Not a level, wrong shapes, NaN or inf in ``A``, ``b`` or ``C``,
-            NaN in a bound, ``lower > upper``, or a vector without its matrix.
+        InvalidLevel: Not a level, wrong shapes, complex entries, NaN or inf in ``A``,
+            ``b`` or ``C`` (or entries beyond :data:`MAX_ENTRY`), NaN in a bound, a lower
+            bound above :data:`BOUND_INF` (or an upper one below its negative),
+            ``lower > upper``, or a vector without its matrix. Bounds beyond
+            :data:`BOUND_INF` on their own side are absent (infinite).
 
     """
     if not isinstance(level, Level):
@@ -209,6 +269,7 @@ def check_level(level: Any, k: int, n: int | None) -> CheckedLevel:
     if C is None:
         C = np.zeros((0, n))
     b = _vector(level.b, A.shape[0], k, name, "b", fill=0.0, allow_inf=False)
+    _huge_or_raise(b, k, name, "b")
     lower = _vector(level.lower, C.shape[0], k, name, "lower", fill=-np.inf, allow_inf=True)
     upper = _vector(level.upper, C.shape[0], k, name, "upper", fill=np.inf, allow_inf=True)
     lo_s = up_s = _EMPTY
@@ -218,6 +279,7 @@ def check_level(level: Any, k: int, n: int | None) -> CheckedLevel:
             raise InvalidLevel(f"{_where(k, name, 'lower')}: contains +inf")
         if float(upper.min()) == -np.inf:
             raise InvalidLevel(f"{_where(k, name, 'upper')}: contains -inf")
+        lower, upper = _absent_bounds(lower, upper, k, name)
         if (lower > upper).any():
             bad = np.flatnonzero(lower > upper)
             i = int(bad[0])

@@ -1,0 +1,241 @@
+"""Mistakes a user makes, each a clear error before anything runs (issue 19).
+
+Library calls raise an :class:`hqp.HQPError` whose message names the file and line, the
+level and field, or the argument; the command line prints one line on stderr and exits with
+status 2, without a traceback and before any simulation starts.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from hqp import robots
+from hqp.app.cli import main
+from hqp.app.run import run_behavior
+from hqp.behaviors.expressions import MAX_LENGTH, ExpressionError, parse
+from hqp.behaviors.inputs import InputStream
+from hqp.behaviors.loader import parse_behavior
+from hqp.behaviors.setup import prepare
+from hqp.behaviors.spec import InputSpec
+from hqp.control.presets import standing_controller
+from hqp.errors import BehaviorFileError, HQPError, InvalidInput, InvalidLevel
+from hqp.sim.simulator import Simulator
+from hqp.solver import Level, solve
+
+STAND = """\
+[behavior]
+name = "bad"
+initial = "stand"
+duration = 0.01
+
+[tasks.balance]
+type = "com"
+axes = "xyz"
+goal = "[feet_center.x, feet_center.y, com0.z]"
+level = {level}
+
+[tasks.trunk_upright]
+type = "orientation"
+frame = "trunk"
+goal = {goal}
+
+[phases.stand]
+tasks = ["balance", "trunk_upright"]
+contacts = ["left_foot", "right_foot"]
+final = true
+
+[[phases.stand.transitions]]
+to = "stand"
+when = "{when}"
+"""
+
+
+def _file(tmp_path: Path, level: str = '"balance"', goal: str = "[0.0, 0.0, 0.0]",
+          when: str = "phase_time > 1") -> Path:
+    path = tmp_path / "bad.toml"
+    path.write_text(STAND.format(level=level, goal=goal, when=when))
+    return path
+
+
+def _cli_error(capsys, *argv: str) -> str:
+    """Run the CLI; it must exit 2 with one line on stderr and nothing on stdout."""
+    assert main(list(argv)) == 2
+    captured = capsys.readouterr()
+    lines = captured.err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("hqp: error: "), captured.err
+    assert "Traceback" not in captured.err and captured.out == ""
+    return lines[0]
+
+
+# -- behavior-file expressions: bounded, checked at load ------------------------------------
+
+@pytest.mark.parametrize(("when", "expected"), [
+    ("phase_time > 9 ** 9 ** 9", "exponent"),
+    ("+".join(["t"] * 1500), f"at most {MAX_LENGTH}"),
+    ("+".join(["t"] * 3000), f"at most {MAX_LENGTH}"),
+    ("-" * 900 + "t", "nested deeper"),
+    ("+".join(["t"] * 300), "nested deeper"),
+    ("'abc'", "constant 'abc' is not allowed"),
+    ("t > 1 / 0", "division by zero"),
+])
+def test_an_unbounded_or_meaningless_expression_is_refused_at_load(tmp_path, when, expected):
+    path = _file(tmp_path, when=when)
+    start = time.perf_counter()
+    with pytest.raises(BehaviorFileError, match=expected) as info:
+        parse_behavior(path.read_text(), path=path)
+    assert time.perf_counter() - start < 1.0
+    assert str(info.value).startswith(f"{path}:24: phases.stand.transitions[0].when: ")
+
+
+def test_an_exponent_read_at_run_time_is_bounded():
+    expr = parse("phase_time ** input")
+    with pytest.raises(ExpressionError, match="exponent"):
+        expr.evaluate({"phase_time": 9.0, "input": 1e9})
+    assert expr.evaluate({"phase_time": 2.0, "input": 3}) == 8.0
+
+
+def test_a_toml_file_nested_too_deeply_is_a_behavior_file_error(tmp_path):
+    for text in ("a = " + "[" * 5000 + "]" * 5000, "a = " + "{x = " * 3000 + "1" + "}" * 3000):
+        with pytest.raises(BehaviorFileError, match="nested too deeply"):
+            parse_behavior(text, path=tmp_path / "deep.toml")
+
+
+# -- runtime inputs (JSON Lines) -------------------------------------------------------------
+
+@pytest.mark.parametrize(("line", "expected"), [
+    ('{"t": "soon", "goal": 1.0}', "'t' expected a finite time"),
+    ('{"t": null, "goal": 1.0}', "'t' expected a finite time"),
+    ('{"t": [1, 2], "goal": 1.0}', "'t' expected a finite time"),
+    ('{"t": NaN, "goal": 1.0}', "'t' expected a finite time"),
+    ('{"t": 0.0, "goal": [1, 2, 3]}', "goal expected shape"),
+    ('{"t": 0.0, "goal": "abc"}', "goal expected shape"),
+    ('{"t": 0.0, "goal": NaN}', "goal expected shape"),
+    ('{"t": 0.0, "goal": ' + "[" * 5000 + "]" * 5000 + "}", "nested too deeply"),
+])
+def test_a_malformed_inputs_line_names_file_and_line(tmp_path, line, expected):
+    path = tmp_path / "inputs.jsonl"
+    path.write_text('{"t": 0.0, "goal": 0.5}\n' + line + "\n")
+    specs = {"goal": InputSpec("goal", (), np.array(0.0), False, "")}
+    with pytest.raises(InvalidInput, match=expected) as info:
+        InputStream(specs, path).values(1.0)
+    assert str(path) in str(info.value) and "2" in str(info.value)
+
+
+# -- checks that need the robot and the controller, still at load ---------------------------
+
+@pytest.mark.parametrize(("level", "goal", "key", "expected"), [
+    ("99", "[0.0, 0.0, 0.0]", "10: tasks.balance.level", "level 99 out of range"),
+    ('"balance"', "[0.0, 0.0]", "15: tasks.trunk_upright.goal", "got shape (2,)"),
+    ('"balance"', "[[2.0, 0, 0], [0, 1, 0], [0, 0, 1]]", "15: tasks.trunk_upright.goal",
+     "not a rotation matrix"),
+])
+def test_a_level_or_goal_the_controller_refuses_fails_at_load(tmp_path, capsys, level, goal,
+                                                               key, expected):
+    path = _file(tmp_path, level=level, goal=goal)
+    with pytest.raises(BehaviorFileError, match=re.escape(expected)) as info:
+        prepare(path)
+    assert str(info.value).startswith(f"{path}:{key}: ")
+    assert expected in _cli_error(capsys, "run", str(path))
+
+
+@pytest.mark.parametrize("value", ["[1,2,3]", '"abc"', "NaN", "null", "true"])
+def test_a_set_value_of_the_wrong_kind_is_refused(capsys, value):
+    line = _cli_error(capsys, "run", "squat-jump", "--set", f"takeoff_height={value}")
+    assert "input 'takeoff_height': expected finite numbers of shape []" in line
+    with pytest.raises(InvalidInput, match="takeoff_height"):
+        prepare("squat-jump", overrides={"takeoff_height": json.loads(value)})
+
+
+@pytest.mark.parametrize("duration", ["nan", "inf", "-1", "0"])
+def test_a_duration_that_is_not_positive_is_refused(capsys, duration):
+    assert "--duration expects a positive number" in _cli_error(
+        capsys, "run", "stand", "--duration", duration)
+    with pytest.raises(InvalidInput, match="duration"):
+        run_behavior("stand", duration=float(duration))
+
+
+@pytest.mark.parametrize(("argv", "expected"), [
+    (["--controller", "nullspace", "--backend", "gurobi"], "--backend applies to the HQP"),
+    (["--backend", "gurobi"], "unknown backend 'gurobi'"),
+    (["--set", "takeoff_height"], "--set expects INPUT=JSON"),
+    (["--set", "takeoff_height=[1,"], "not JSON"),
+])
+def test_bad_run_options_are_one_line(capsys, argv, expected):
+    assert expected in _cli_error(capsys, "run", "squat-jump", *argv)
+
+
+def test_an_output_path_that_cannot_be_written_is_refused_before_the_run(tmp_path, capsys):
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    for option in ("--plot", "--video"):
+        assert "is not a folder" in _cli_error(capsys, "run", "stand", option,
+                                               str(blocker / "run.png"))
+        assert "is a folder" in _cli_error(capsys, "run", "stand", option, str(tmp_path))
+    with pytest.raises(InvalidInput, match="is not a folder"):
+        run_behavior("stand", plot=blocker / "run.png")
+
+
+# -- the servo's entry ------------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def standing():
+    robot = robots.load("paper-humanoid")
+    return robot, Simulator(robot).state()
+
+
+def test_a_step_at_a_time_that_is_not_finite_is_refused(standing):
+    robot, state = standing
+    ctrl = standing_controller(robot)
+    for t in (np.nan, np.inf):
+        with pytest.raises(InvalidInput, match="finite time"):
+            ctrl.step(state, t)
+
+
+def test_the_base_quaternion_is_normalised_within_a_tolerance_and_refused_beyond(standing):
+    robot, state = standing
+    reference = standing_controller(robot).step(state, 0.0).tau
+    near = state.q.copy()
+    near[3:7] *= 1.0 + 5e-4
+    tau = standing_controller(robot).step(type(state)(near, state.v), 0.0).tau
+    np.testing.assert_allclose(tau, reference, atol=1e-9)
+    ctrl = standing_controller(robot)
+    for scale in (2.0, 0.0, 1.01):
+        q = state.q.copy()
+        q[3:7] *= scale
+        with pytest.raises(InvalidInput, match="base quaternion"):
+            ctrl.step(type(state)(q, state.v), 0.0)
+
+
+# -- the solver's entry ------------------------------------------------------------------------
+
+BACKENDS = ("proxsuite", "daqp", "native")
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_a_complex_level_is_refused(backend):
+    rng = np.random.default_rng(1)
+    A = rng.normal(size=(3, 5))
+    with pytest.raises(InvalidLevel, match="level 0, field A: complex"):
+        solve([Level(A=A + 1j * A, b=np.ones(3))], backend=backend)
+    with pytest.raises(InvalidLevel, match="level 1, field b: complex"):
+        solve([Level(A=A, b=np.ones(3)), Level(A=A, b=[1j, 0, 0])], backend=backend)
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_bounds_beyond_1e20_are_absent_and_the_level_is_satisfied(backend):
+    rng = np.random.default_rng(2)
+    A, C = rng.normal(size=(3, 5)), rng.normal(size=(2, 5))
+    huge = Level(C=C, lower=np.full(2, -1e300), upper=np.full(2, 1e300))
+    solution = solve([huge, Level(A=A, b=np.ones(3))], backend=backend)
+    assert solution.levels[0].satisfied and solution.levels[0].cost == 0.0
+    assert solution.levels[1].cost < 1e-12
+    with pytest.raises(InvalidLevel, match="lower bound above 1e\\+20"):
+        solve([Level(C=C, lower=np.full(2, 1e300))], backend=backend)
+    with pytest.raises(HQPError, match="beyond"):
+        solve([Level(A=1e200 * A, b=np.ones(3))], backend=backend)
