@@ -186,7 +186,7 @@ def test_safety_phase_on_infeasible_watched_task(setup):
     behavior.update(state, 0.702, rep)
     assert behavior.phase is behavior.Phase.SAFE
     kinds = [(e.task, e.status) for e in behavior.events]
-    assert ("hip", "infeasible") in kinds and ("hip", "safety") in kinds
+    assert ("hip", "conflict") in kinds and ("hip", "safety") in kinds
     # leaving the phase removes the hand and the hip (blended out by the stack)
     assert {e[1] for e in ctrl.log if e[0] == "remove"} == {"hand", "hip"}
 

@@ -403,23 +403,31 @@ def _summary(data: dict[str, Any]) -> str:
 
 
 def _events_summary(events: list[dict[str, Any]], most: int = 4) -> list[str]:
-    """Lines of the feasibility events: per task, how often it lost and regained its level."""
+    """Return the lines of the feasibility events: per task and word, how often, first when."""
     if not events:
         return ["  feasibility events: none"]
-    lines = [f"  feasibility events: {len(events)} (--json for each)"]
-    groups: dict[tuple[str, str], list[dict[str, Any]]] = {}
+    lines = [f"  feasibility events: {len(events)} (each in --json)"]
+    groups: dict[tuple[str, str, Any], list[dict[str, Any]]] = {}
     for e in events:
-        groups.setdefault((e["task"], e["status"]), []).append(e)
-    words = {"infeasible": "in conflict with a higher level", "feasible": "satisfied again",
-             "safety": "sent to the safety phase"}
-    ranked = sorted(groups.items(), key=lambda kv: (-len(kv[1]), kv[0]))
-    for (task, kind), group in ranked[:most]:
+        groups.setdefault((e["task"], e["status"], e.get("yields_to")), []).append(e)
+    ranked = sorted(groups.items(), key=lambda kv: (-len(kv[1]), kv[0][:2]))
+    for (task, word, yields_to), group in ranked[:most]:
         first = group[0]
-        lines.append(f"    {task}: {words.get(kind, kind)} {len(group)} x, first at "
-                     f"{first['t']:.2f} s in {first['phase']}")
+        lines.append(f"    {task} (level {first['level']}): {_event_words(word, yields_to)}, "
+                     f"{len(group)} x, first at {first['t']:.2f} s in {first['phase']}")
     if len(ranked) > most:
-        lines.append(f"    ... {len(ranked) - most} more kinds")
+        lines.append(f"    ... and {len(ranked) - most} more")
     return lines
+
+
+def _event_words(word: str, yields_to: int | None) -> str:
+    """Return what an event word means, in a sentence (docs/behaviors.md)."""
+    if word == "conflict":
+        return ("in conflict with a higher level" if yields_to is None
+                else f"in conflict with level {yields_to}")
+    return {"infeasible": "infeasible (its own rows cannot hold)",
+            "satisfied": "satisfied again",
+            "safety": "sent the behavior to its safety phase"}.get(word, word)
 
 
 def command(args: argparse.Namespace) -> int:

@@ -8,9 +8,9 @@ computed its command at the measured state, :meth:`Behavior.update`
    gravity, frame positions, joint positions, task errors, and the servo's
    feasibility flags (seed 001: "the servo module sends a flag to the active
    behavior indicating infeasibility of the movement");
-2. enters the phase's safety phase when a watched task is infeasible, i.e. in
-   conflict with a higher level (seed Figure 13), else fires the first
-   transition whose condition holds;
+2. enters the phase's safety phase when a watched task is flagged in conflict
+   with a higher level (the seed's infeasibility flag, Figure 13), else fires the
+   first transition whose condition holds;
 3. on a phase change, writes the new active task set (the seed's "active task
    set" register): tasks that stay keep running untouched, new tasks are ramped
    in from zero effect by the stack, removed tasks are blended out, released
@@ -38,7 +38,7 @@ from hqp.controller import Feasibility
 from hqp.errors import BehaviorFileError
 
 if TYPE_CHECKING:
-    from hqp.controller import Command, Controller, FeasibilityReport
+    from hqp.controller import Command, Controller, FeasibilityReport, TaskStatus
     from hqp.model import RobotState
 
 logger = logging.getLogger(__name__)
@@ -52,8 +52,12 @@ class FeasibilityEvent:
         t: Simulated time [s].
         phase: Active phase.
         task: Task name.
-        status: ``"infeasible"`` (in conflict with a higher level), ``"feasible"``,
-            or ``"safety"`` (the behavior entered its safety phase because of this task).
+        status: The words of the feasibility report (docs/behaviors.md): ``"conflict"``
+            (flagged: in conflict with level ``yields_to``, or with a higher level when the
+            controller does not say which), ``"infeasible"`` (the task's own rows cannot
+            hold, whatever the levels above do: only with ``diagnostics="full"``),
+            ``"satisfied"`` (the flag cleared), or ``"safety"`` (the behavior entered its
+            safety phase because of this task).
         level: The task's level.
         yields_to: The higher level it yields to (``None`` when not in conflict).
         residual: Norm of its residual [task units / s^2].
@@ -89,10 +93,10 @@ class Behavior:
         standing: Standing configuration ``(nq,)`` (``standing`` in goal expressions).
         safety_steps: Consecutive control steps a task's raw flag must hold before its
             feasibility flag changes (filters single-step flags).
-        infeasible_residual: Residual below which a conflict is not counted as
-            infeasible [task units / s^2]. A task is infeasible when it is in conflict
-            with a higher level (or, when the controller does not say which level it
-            yields to, in conflict) with a residual above this.
+        infeasible_residual: Residual below which a conflict is not flagged [task units /
+            s^2]. A task is flagged when it is in conflict with a higher level (or, when
+            the controller does not say which level it yields to, in conflict) with a
+            residual above this.
 
     Attributes:
         Phase: The :class:`enum.Enum` of the phases.
@@ -257,12 +261,17 @@ class Behavior:
                 self._flags[status.name] = bad
                 self._bad_steps[status.name] = 0
                 self.events.append(FeasibilityEvent(
-                    t, phase.name, status.name, "infeasible" if bad else "feasible",
+                    t, phase.name, status.name, self._word(status) if bad else "satisfied",
                     status.level, status.yields_to, status.residual))
             if (status.name in phase.watch and trigger is None
                     and self._flags.get(status.name, False)):
                 trigger = status.name
         return trigger
+
+    def _word(self, status: TaskStatus) -> str:
+        """Event word of a flagged task: ``"infeasible"`` only where its own rows cannot hold."""
+        full = getattr(self.controller, "diagnostics", None) == "full"
+        return "infeasible" if full and status.yields_to is None else "conflict"
 
     def _enter(self, name: str, state: RobotState, t: float) -> None:
         """Write the active task set and contacts of phase ``name``."""
@@ -324,6 +333,8 @@ class Behavior:
             "error": _LazyNamespace(lambda n: self._error(n), self.tasks, "error"),
             "infeasible": Namespace({n: self._flags.get(n, False) for n in self.tasks},
                                     "infeasible"),
+            "conflict": Namespace({n: self._flags.get(n, False) for n in self.tasks},
+                                  "conflict"),
             "joint": _LazyNamespace(lambda n: factory.joint(model, n), factory.joint_names,
                                     "joint"),
             "joint_margin": _LazyNamespace(lambda n: factory.joint_margin(model, n),

@@ -42,7 +42,7 @@ LIBRARY = Path(__file__).resolve().parent / "library"
 SENSED_NAMES = frozenset(
     {
         "t", "phase_time", "com", "com_velocity", "com0", "feet_center", "contact", "contacts",
-        "error", "infeasible", "joint", "joint_margin", "input", "plan", "frame",
+        "error", "conflict", "infeasible", "joint", "joint_margin", "input", "plan", "frame",
     }
 )
 """Names a condition may read (see :class:`hqp.behaviors.behavior.Behavior`)."""
@@ -420,7 +420,8 @@ class _NameCheck:
     ) -> None:
         self.ctx = ctx
         self.known: dict[str, set[str] | None] = {
-            "input": set(inputs), "error": tasks, "infeasible": tasks, "contact": contacts,
+            "input": set(inputs), "error": tasks, "conflict": tasks, "infeasible": tasks,
+            "contact": contacts,
             "plan": set(plan), "frame": frames, "joint": joints, "joint_margin": joints,
             "pose": poses,
         }
@@ -435,7 +436,8 @@ class _NameCheck:
         for ns, attr in expr.attributes:
             valid = self.known.get(ns)
             if ns in self.known and valid is not None and attr not in valid:
-                what = {"input": "input", "error": "task", "infeasible": "task",
+                what = {"input": "input", "error": "task", "conflict": "task",
+                        "infeasible": "task",
                         "contact": "contact", "plan": "planner output", "frame": "frame",
                         "joint": "joint", "joint_margin": "joint", "pose": "pose"}[ns]
                 hint = ("; declare it under [planner]" if ns == "plan" and not valid else "")
