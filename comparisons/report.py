@@ -2,28 +2,37 @@
 
 from __future__ import annotations
 
-import math
+import textwrap
 from pathlib import Path
 from typing import Any
 
 from comparisons.base import ScenarioResult
 from hqp.plots import plot_panels
+from hqp.tables import format_columns
 
 COLUMNS: tuple[tuple[str, str], ...] = (
-    ("cog_error_max_mm", "cog max [mm]"),
-    ("cog_error_final_mm", "cog final [mm]"),
+    ("cog_error_max_mm", "CoG max [mm]"),
+    ("cog_error_final_mm", "CoG end [mm]"),
+    ("hand_final_distance_cm", "hand [cm]"),
+    ("joint_limit_violation_max_rad", "past limit [rad]"),
+    ("fell", "fell"),
+    ("step_time_median_ms", "step [ms]"),
+)
+"""Key metrics, first in every table, with their headers (scenario-specific metrics follow,
+then :data:`DETAILS`)."""
+
+DETAILS: tuple[tuple[str, str], ...] = (
     ("cog_error_x_max_mm", "x max [mm]"),
     ("cog_error_y_max_mm", "y max [mm]"),
     ("cog_error_x_final_mm", "x final [mm]"),
     ("cog_error_y_final_mm", "y final [mm]"),
-    ("hand_final_distance_cm", "hand [cm]"),
-    ("joint_limit_violation_max_rad", "limit viol. [rad]"),
     ("torque_clipping_count", "clipped"),
     ("safe_mode_steps", "safe steps"),
-    ("step_time_median_ms", "step [ms]"),
-    ("fell", "fell"),
 )
-"""Metrics shown in every table, with their headers (scenario-specific metrics follow)."""
+"""Metrics shown last, where the width allows (``--wide``: always)."""
+
+WIDTH = 100
+"""Widest line of the default table [characters]."""
 
 _SKIP = {"controller", "hierarchy", "note"}
 
@@ -56,50 +65,42 @@ def header(key: str) -> str:
     return name.replace("_", " ") + unit
 
 
-def _fmt(value: Any) -> str:
-    """Format one cell."""
-    if value is None:
-        return "-"
-    if isinstance(value, bool):
-        return "yes" if value else "no"
-    if isinstance(value, int):
-        return str(value)
-    if isinstance(value, float):
-        if not math.isfinite(value):
-            return str(value)
-        if value != 0.0 and (abs(value) < 1e-2 or abs(value) >= 1e5):
-            return f"{value:.2e}"
-        return f"{value:.2f}"
-    return str(value)
+def format_table(result: ScenarioResult, wide: bool = False) -> str:
+    """Return a plain-text table: one row per controller and hierarchy, one column per metric.
+
+    At most :data:`WIDTH` characters wide unless ``wide`` (the last line then names the
+    columns left out); one number format per column (:func:`hqp.tables.column_format`).
+    """
+    return format_rows(result.scenario, result.robot, [r.row() for r in result.runs], wide)
 
 
-def format_table(result: ScenarioResult) -> str:
-    """Return a plain-text table: one row per controller and hierarchy, one column per metric."""
-    return format_rows(result.scenario, result.robot, [r.row() for r in result.runs])
-
-
-def format_rows(scenario: str, robot: str, rows: list[dict[str, Any]]) -> str:
+def format_rows(scenario: str, robot: str, rows: list[dict[str, Any]],
+                wide: bool = False) -> str:
     """Format the contract's ``runs`` rows of one scenario as :func:`format_table` does."""
     keys = [k for k, _ in COLUMNS]
     headers = [h for _, h in COLUMNS]
+    detail = dict(DETAILS)
     for row in rows:
         for k in row:
-            if k not in _SKIP and k not in keys:
+            if k not in _SKIP and k not in keys and k not in detail:
                 keys.append(k)
                 headers.append(header(k))
-    table = [["controller", "hierarchy", *headers]]
-    for row in rows:
-        table.append([row["controller"], row["hierarchy"], *(_fmt(row.get(k)) for k in keys)])
-    widths = [max(len(r[i]) for r in table) for i in range(len(table[0]))]
-    lines = [f"{scenario} on {robot}"]
-    for k, r in enumerate(table):
-        lines.append("  ".join(c.rjust(w) if i > 1 else c.ljust(w) for i, (c, w) in
-                               enumerate(zip(r, widths))))
-        if k == 0:
-            lines.append("  ".join("-" * w for w in widths))
+    for k, h in DETAILS:
+        if any(k in row for row in rows):
+            keys.append(k)
+            headers.append(h)
+    table = [[row["controller"], row["hierarchy"], *(row.get(k) for k in keys)]
+             for row in rows]
+    lines, left_out = format_columns(["controller", "hierarchy", *headers], table,
+                                     width=None if wide else WIDTH, keep=2)
+    lines = [f"{scenario} on {robot}", *lines]
+    if left_out:
+        lines.append(f"({len(left_out)} more columns: --wide, or --json for every field)")
     notes = [
         f"note ({r['controller']}, {r['hierarchy']}): {r['note']}" for r in rows if "note" in r
     ]
+    if not wide:
+        notes = [textwrap.fill(n, WIDTH, subsequent_indent="  ") for n in notes]
     return "\n".join(lines + notes)
 
 

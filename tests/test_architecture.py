@@ -44,7 +44,7 @@ LAYERS: dict[str, tuple[str, ...]] = {
     "simulation": ("hqp.sim.*",),
     "action layer": ("hqp.behaviors.*",),
     "benchmarks": ("hqp.bench.*",),
-    "figures": ("hqp.plots",),
+    "figures": ("hqp.plots", "hqp.tables"),
     "application": ("hqp.app.*", "hqp.cli"),
     "comparisons": ("comparisons.*",),
 }

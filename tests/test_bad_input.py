@@ -239,3 +239,45 @@ def test_bounds_beyond_1e20_are_absent_and_the_level_is_satisfied(backend):
         solve([Level(C=C, lower=np.full(2, 1e300))], backend=backend)
     with pytest.raises(HQPError, match="beyond"):
         solve([Level(A=1e200 * A, b=np.ones(3))], backend=backend)
+
+
+# -- terminal output: 100 columns, one number format per column -----------------------------
+
+FIGURES = Path(__file__).resolve().parents[1] / "docs" / "figures"
+
+
+@pytest.mark.parametrize("scenario", ["hand-reach", "obstacle", "box-grab", "screwgun"])
+def test_the_compare_table_fits_100_columns_and_wide_shows_every_field(scenario):
+    from comparisons.report import format_rows
+
+    data = json.loads((FIGURES / f"{scenario}.json").read_text())
+    narrow = format_rows(data["scenario"], data["robot"], data["runs"])
+    assert max(len(line) for line in narrow.splitlines()) <= 100
+    assert "more columns: --wide" in narrow
+    wide = format_rows(data["scenario"], data["robot"], data["runs"], wide=True)
+    header = wide.splitlines()[1]
+    assert "x max [mm]" in header and len(header) > 100
+
+
+def test_a_column_has_one_number_format():
+    from hqp.tables import column_format, format_columns
+
+    fmt = column_format([0.01, 5.37e-3, 2.0, 0.0])
+    assert [fmt(v) for v in (0.01, 5.37e-3, 2.0, 0.0)] == ["0.01000", "0.00537", "2.00000", "0"]
+    fmt = column_format([17.4, 0.0589, 439.0])
+    assert [fmt(v) for v in (17.4, 0.0589)] == ["1.74e+01", "5.89e-02"]
+    lines, left_out = format_columns(["name", "a", "b"], [["x", 1.0, 2.0]], width=10)
+    assert left_out == ["b"] and all(len(line) <= 10 for line in lines)
+
+
+def test_the_bench_table_fits_100_columns(capsys):
+    from hqp.app.bench import format_narrow
+
+    rows = [{"robot": "g1", "solver": "hqp/basis/daqp", "levels": 7, "n": 47, "rows": 148,
+             "median_ms": 4.06, "p95_ms": 4.82, "cpu_median_ms": 4.07, "cost_excess": 4e-7,
+             "over_nullspace": 1.08, "over_placo": 11.2, "over_placo_cpu": 11.2,
+             "speedup_vs_cascade": 1.5, "ratio_to_basis_proxsuite": 0.75, "source": "stand",
+             "suite": "controller"}]
+    table = format_narrow({"suite": "controller", "rows": rows})
+    assert max(len(line) for line in table.splitlines()) <= 100
+    assert "--wide" in table.splitlines()[-1] and "hqp/basis/daqp" in table

@@ -174,9 +174,11 @@ def test_contract_json_shape_and_table() -> None:
     assert {(r["controller"], r["hierarchy"]) for r in payload["runs"]} == {
         ("hqp", "shared"), ("hqp", "cog-first"), ("nullspace", "shared"),
         ("nullspace", "cog-first")}
-    table = format_table(result)
+    table = format_table(result, wide=True)
     assert "x max [mm]" in table and "y final [mm]" in table
     assert len(table.splitlines()) == 3 + 4
+    narrow = format_table(result).splitlines()
+    assert max(len(line) for line in narrow) <= 100 and "CoG max [mm]" in narrow[1]
 
 
 def test_scenario_metric_headers_are_short() -> None:
