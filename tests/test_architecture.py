@@ -45,7 +45,7 @@ LAYERS: dict[str, tuple[str, ...]] = {
     "action layer": ("hqp.behaviors.*",),
     "benchmarks": ("hqp.bench.*",),
     "figures": ("hqp.plots", "hqp.tables"),
-    "application": ("hqp.app.*", "hqp.cli"),
+    "application": ("hqp.app.*", "hqp.cli", "hqp.study.*"),
     "comparisons": ("comparisons.*",),
 }
 """Layer -> its modules: exact names, or ``pkg.*`` for a package and everything below it.

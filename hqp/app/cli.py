@@ -12,10 +12,11 @@ import logging
 import sys
 from collections.abc import Sequence
 
-from hqp.app import behaviors, bench, compare, run
+from hqp.app import behaviors, bench, compare, run, sweep
 from hqp.errors import HQPError
 
-SUBCOMMANDS = (bench.add_parser, compare.add_parser, run.add_parser, behaviors.add_parser)
+SUBCOMMANDS = (bench.add_parser, compare.add_parser, run.add_parser, behaviors.add_parser,
+               sweep.add_parser)
 """One function per subcommand; each adds its parser and sets ``func``."""
 
 
