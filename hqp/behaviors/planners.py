@@ -18,7 +18,12 @@ zero at lift-off and at touchdown (the foot lands with no impact velocity).
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+import contextlib
+import logging
+import os
+import sys
+import tempfile
+from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -27,6 +32,36 @@ import numpy as np
 from hqp.errors import BehaviorFileError
 from hqp.model import RobotModel
 from hqp.tasks.reference import min_jerk_profile
+
+logger = logging.getLogger(__name__)
+
+
+@contextlib.contextmanager
+def placo_stderr_to_log() -> Iterator[None]:
+    """Contain what PlaCo's C++ code writes on stderr: logged at debug level instead.
+
+    PlaCo's ``HumanoidRobot`` prints ``WARNING: Can't find trunk frames ...`` for robots
+    without its frame names (its leg-spacing and camera helpers, which hqp does not use).
+    """
+    sys.stderr.flush()
+    try:
+        saved = os.dup(2)
+    except OSError:  # no real file descriptor (a test harness's stream)
+        yield
+        return
+    with tempfile.TemporaryFile(mode="w+b") as sink:
+        os.dup2(sink.fileno(), 2)
+        try:
+            yield
+        finally:
+            sys.stderr.flush()
+            os.dup2(saved, 2)
+            os.close(saved)
+            sink.seek(0)
+            for line in sink.read().decode(errors="replace").splitlines():
+                if line.strip():
+                    logger.debug("placo: %s", line)
+
 
 WALK_DEFAULTS: dict[str, float | int] = {
     "distance": 1.0,
@@ -180,7 +215,8 @@ class PlacoWalkPlanner:
         import placo
 
         p = self.params
-        robot = placo.HumanoidRobot("", 0, self.urdf.read_text())
+        with placo_stderr_to_log():
+            robot = placo.HumanoidRobot("", 0, self.urdf.read_text())
         T_left = model.frame_placement("left_foot").homogeneous.copy()
         T_right = model.frame_placement("right_foot").homogeneous.copy()
         com = model.com.copy()
@@ -206,8 +242,9 @@ class PlacoWalkPlanner:
         planner.configure(target_left, target_right)
         footsteps = planner.plan(placo.HumanoidRobot_Side.left, T_left, T_right)
         supports = placo.FootstepsPlanner.make_supports(footsteps, 0.0, True, True, True)
-        wpg = placo.WalkPatternGenerator(robot, hp)
-        self.trajectory = wpg.plan(supports, com, 0.0)
+        with placo_stderr_to_log():
+            wpg = placo.WalkPatternGenerator(robot, hp)
+            self.trajectory = wpg.plan(supports, com, 0.0)
         self.footsteps = [np.array(f.frame) for f in footsteps]
         self.omega = float(placo.LIPM.compute_omega(hp.walk_com_height))
         self.t_start = float(t) + float(p["start_delay"])
