@@ -304,3 +304,16 @@ def test_hqp_run_walk_on_g1_prints_no_placo_warning(capfd):
     assert main(["run", "walk", "--robot", "g1", "--duration", "0.01"]) == 0
     captured = capfd.readouterr()
     assert "WARNING" not in captured.err and "behavior walk on g1" in captured.out
+
+
+def test_a_mujoco_gl_backend_that_cannot_load_is_one_line():
+    import os
+    import subprocess
+    import sys
+
+    env = {**os.environ, "MUJOCO_GL": "no-such-backend", "OMP_NUM_THREADS": "1"}
+    proc = subprocess.run([sys.executable, "-m", "hqp.cli", "behaviors"], capture_output=True,
+                          text=True, env=env, timeout=120)
+    assert proc.returncode == 2 and proc.stdout == ""
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("hqp: error: MUJOCO_GL=no-such-backend")

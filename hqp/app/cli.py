@@ -9,8 +9,19 @@ from __future__ import annotations
 
 import argparse
 import logging
+import os
 import sys
 from collections.abc import Sequence
+
+try:  # MuJoCo sets up its OpenGL backend (MUJOCO_GL) when it is imported: fail in one line
+    import mujoco  # noqa: F401
+except (AttributeError, ImportError, OSError, RuntimeError) as exc:
+    if "MUJOCO_GL" not in os.environ:
+        raise
+    print(f"hqp: error: MUJOCO_GL={os.environ['MUJOCO_GL']}: MuJoCo cannot load this OpenGL "
+          f"backend ({type(exc).__name__}: {exc}); install it (osmesa: libosmesa6, egl: "
+          "libegl1), choose another (egl, osmesa, glfw) or unset MUJOCO_GL", file=sys.stderr)
+    raise SystemExit(2) from None
 
 from hqp.app import behaviors, bench, compare, run, sweep
 from hqp.errors import HQPError
