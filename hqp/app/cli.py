@@ -1,7 +1,8 @@
 """The ``hqp`` command line: one module of :mod:`hqp.app` per subcommand.
 
 ``hqp compare`` (:mod:`hqp.app.compare`), ``hqp run`` (:mod:`hqp.app.run`), ``hqp behaviors``
-(:mod:`hqp.app.behaviors`), ``hqp bench`` (:mod:`hqp.app.bench`). Progress bars and logs go
+(:mod:`hqp.app.behaviors`), ``hqp bench`` (:mod:`hqp.app.bench`), ``hqp view``
+(:mod:`hqp.app.view`), ``hqp sweep`` (:mod:`hqp.app.sweep`). Progress bars and logs go
 to stderr; with ``--json`` stdout holds the JSON object alone, otherwise a readable table.
 """
 
@@ -23,11 +24,11 @@ except (AttributeError, ImportError, OSError, RuntimeError) as exc:
           "libegl1), choose another (egl, osmesa, glfw) or unset MUJOCO_GL", file=sys.stderr)
     raise SystemExit(2) from None
 
-from hqp.app import behaviors, bench, compare, run, sweep
+from hqp.app import behaviors, bench, compare, run, sweep, view
 from hqp.errors import HQPError
 
 SUBCOMMANDS = (bench.add_parser, compare.add_parser, run.add_parser, behaviors.add_parser,
-               sweep.add_parser)
+               view.add_parser, sweep.add_parser)
 """One function per subcommand; each adds its parser and sets ``func``."""
 
 

@@ -1,0 +1,222 @@
+"""``hqp view``: the session's loop (server side) and the page in a real headless Chromium.
+
+The server-side half drives :class:`hqp.app.view.session.ViewSession` the way the page does
+(its commands, its snapshots). The browser half starts ``hqp view stand --no-browser`` as a
+process, drives its page with Playwright in Debian's ``chromium`` (installed by ``.ci/run``):
+clicks the ``reach`` button, types a new hand goal in the page's goal field, takes a
+screenshot, and checks that the hand moved towards the goal, the task panel, a second
+instance on the same port, Ctrl-C and the record written on exit.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import shutil
+import signal
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from hqp.app.cli import main
+from hqp.app.view.page import ViewError, check_port, goal_text, task_table
+from hqp.app.view.session import ViewSession
+
+CHROMIUM_CANDIDATES = ("chromium", "chromium-browser", "google-chrome")
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def hand_distance(snap) -> float:
+    goal = next(g for g in snap.goals if g.task == "hand")
+    return float(np.linalg.norm(np.subtract(snap.frames["hand"], goal.value)))
+
+
+# ------------------------------------------------------------------ server side
+@pytest.mark.slow
+def test_session_goal_pause_step_push_reset_record(tmp_path):
+    session = ViewSession("stand", realtime=False, record_dir=tmp_path)
+    session.start()
+    try:
+        snap = session.wait(lambda s: s.steps >= 20, 60)
+        assert snap.behavior == "stand" and snap.goals == ()  # stand reads no input
+        session.select("reach")
+        snap = session.wait(lambda s: s.behavior == "reach" and s.phase == "reach", 60)
+        (goal,) = snap.goals
+        assert (goal.input, goal.task, goal.kind) == ("hand_goal", "hand", "position")
+        target = np.array(goal.value) + [0.0, 0.08, 0.08]
+        session.set_goal("hand_goal", target)
+        snap = session.wait(lambda s: np.allclose(s.goals[0].value, target), 30)
+        d0, t0 = hand_distance(snap), snap.t
+        snap = session.wait(lambda s: s.t >= t0 + 0.3, 120)
+        d1 = hand_distance(snap)
+        assert d1 < d0 - 0.03, (d0, d1)  # towards the new goal (tracked at <= 0.5 m/s)
+        rows = {r.name: r for r in snap.tasks}
+        assert rows["balance"].status == "satisfied"
+        assert rows["hand"].level < rows["posture"].level
+        assert rows["dynamics"].level == 0 and rows["dynamics"].status == "satisfied"
+        assert rows["posture"].status == "conflict" and rows["posture"].yields_to is not None
+        table = task_table(snap.tasks)
+        assert re.search(r"\| 4 \| balance \| ok \|", table), table
+        assert re.search(r"\| posture \| CONFLICT → \d \|", table), table
+        assert "hand`: " in goal_text(snap)
+        session.push([40.0, 0.0, 0.0], 0.05)
+        session.pause()
+        paused = session.wait(lambda s: s.paused, 30)
+        time.sleep(0.3)
+        assert session.snapshot().t == pytest.approx(paused.t)  # paused: time stands still
+        session.single_step()
+        session.wait(lambda s: s.t == pytest.approx(paused.t + 0.001), 30)
+        session.reset()
+        session.resume()
+        snap = session.wait(lambda s: s.t < paused.t and s.behavior == "reach", 60)
+        assert snap.paused is False
+    finally:
+        session.stop()
+    record = session.record()
+    runs = record["runs"]
+    assert [r["behavior"] for r in runs] == ["stand", "reach", "reach"]
+    actions = [a["action"] for a in runs[1]["actions"]]
+    assert actions == ["behavior", "goal", "push", "pause", "step", "reset"]
+    assert runs[1]["actions"][1]["value"] == pytest.approx(target.tolist(), abs=1e-6)
+    for key in ("behavior", "robot", "duration_s", "fell", "phases", "steps",
+                "feasibility_events", "max_torque_jump_nm", "realtime_factor"):
+        assert key in runs[1]  # the hqp run --json contract, per behavior run
+    assert runs[1]["phases"] == ["stand", "reach"] and runs[1]["fell"] is False
+    # the goals given in the page, as an inputs file `hqp run reach --inputs` replays
+    lines = Path(runs[1]["inputs_file"]).read_text().splitlines()
+    assert [json.loads(x)["hand_goal"] for x in lines] == [runs[1]["actions"][1]["value"]]
+    assert session.write_record() == tmp_path / "run.json"
+
+
+def test_session_refuses_bad_commands():
+    with pytest.raises(Exception, match="behavior"):
+        ViewSession("no-such-behavior")
+
+
+def test_port_in_use_is_a_clear_error(capsys):
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        s.listen()
+        port = s.getsockname()[1]
+        with pytest.raises(ViewError, match=f"port {port} .* in use"):
+            check_port("127.0.0.1", port)
+        assert main(["view", "stand", "--no-browser", "--port", str(port)]) == 2
+    err = capsys.readouterr().err
+    assert f"port {port}" in err and "in use" in err and err.count("\n") == 1
+
+
+# ------------------------------------------------------------------ in a browser
+def _chromium() -> str | None:
+    for name in CHROMIUM_CANDIDATES:
+        path = shutil.which(name)
+        if path:
+            return path
+    return None
+
+
+def _start_view(port: int, record: Path) -> subprocess.Popen:
+    env = dict(os.environ, OMP_NUM_THREADS="1", PYTHONUNBUFFERED="1")
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "hqp.app.cli", "view", "stand", "--no-browser",
+         "--port", str(port), "--record", str(record)],
+        stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True, env=env)
+    deadline = time.monotonic() + 120
+    assert proc.stderr is not None
+    while time.monotonic() < deadline:
+        line = proc.stderr.readline()
+        if "Ctrl-C stops" in line:
+            return proc
+        if not line and proc.poll() is not None:
+            break
+    proc.kill()
+    raise AssertionError("hqp view did not start")
+
+
+def _vector_inputs(page, label: str):
+    """The three number fields of a viser vector control, by its label."""
+    page.evaluate("""(label) => {
+        const l = [...document.querySelectorAll('label')].find(e => e.textContent === label);
+        let row = l;
+        while (row && row.querySelectorAll('input').length < 3) row = row.parentElement;
+        row.querySelectorAll('input').forEach((e, i) => e.setAttribute('data-hqp', label + i));
+    }""", label)
+    return [page.locator(f"[data-hqp='{label}{i}']") for i in range(3)]
+
+
+def _hand_distance(page) -> float:
+    text = page.get_by_text(re.compile(r"hand: [0-9.]+ m from hand_goal")).inner_text()
+    return float(re.search(r"hand: ([0-9.]+) m", text).group(1))
+
+
+@pytest.mark.slow
+def test_page_in_headless_chromium(tmp_path):
+    playwright = pytest.importorskip(
+        "playwright.sync_api", reason="no Playwright: the browser half does not run "
+        "(pip install -e '.[test]'); the server-side tests above still do")
+    chromium = _chromium()
+    if chromium is None:
+        pytest.skip("no chromium on this machine (apt-get install chromium, as .ci/run "
+                    "does): the browser half does not run; the server-side tests still do")
+    port = free_port()
+    proc = _start_view(port, tmp_path / "rec")
+    try:
+        with playwright.sync_playwright() as p:
+            browser = p.chromium.launch(executable_path=chromium, headless=True,
+                                        args=["--use-angle=swiftshader",
+                                              "--enable-unsafe-swiftshader", "--no-sandbox"])
+            page = browser.new_page(viewport={"width": 1280, "height": 800})
+            page.goto(f"http://127.0.0.1:{port}")
+            page.get_by_role("button", name="reach").click(timeout=60000)
+            page.get_by_text(re.compile(r"reach · phase reach")).wait_for(timeout=120000)
+            fields = _vector_inputs(page, "hand_goal (hand)")
+            goal = [float(f.input_value()) for f in fields]
+            assert goal == pytest.approx([0.55, -0.22, 1.10])  # the behavior's default
+            new = [goal[0], goal[1] + 0.1, goal[2] + 0.1]
+            for f, v in zip(fields[1:], new[1:]):
+                f.fill(f"{v:.2f}")
+                f.press("Enter")
+            page.wait_for_function(
+                "() => /hand_goal/.test(document.body.innerText)", timeout=30000)
+            time.sleep(1.0)  # the goal's line is written, the hand starts towards it
+            d0 = _hand_distance(page)
+            deadline = time.monotonic() + 120
+            d1 = d0
+            while time.monotonic() < deadline and d1 > d0 - 0.05:
+                time.sleep(0.5)
+                d1 = _hand_distance(page)
+            page.screenshot(path=str(tmp_path / "view.png"))
+            assert d1 < d0 - 0.05, (d0, d1)
+            table = page.locator("table").first.inner_text()
+            assert re.search(r"4\s+balance\s+ok", table), table
+            assert re.search(r"hand\s+ok", table), table
+            assert re.search(r"posture\s+CONFLICT → \d", table), table
+            browser.close()
+        assert (tmp_path / "view.png").stat().st_size > 10000
+        second = subprocess.run(
+            [sys.executable, "-m", "hqp.app.cli", "view", "--no-browser", "--port", str(port)],
+            capture_output=True, text=True, timeout=120)
+        assert second.returncode == 2 and "in use" in second.stderr, second.stderr
+    finally:
+        proc.send_signal(signal.SIGINT)
+        try:
+            rc = proc.wait(60)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            raise
+    assert rc == 0
+    record = json.loads((tmp_path / "rec" / "run.json").read_text())
+    reach = record["runs"][1]
+    assert reach["behavior"] == "reach"
+    goals = [a["value"] for a in reach["actions"] if a["action"] == "goal"]
+    assert goals and goals[-1] == pytest.approx(new, abs=1e-6)
