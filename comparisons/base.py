@@ -19,6 +19,7 @@ from comparisons.metrics import Trace, run_metrics
 from hqp.control.presets import CONTROLLER_NAMES
 from hqp.errors import InvalidInput, UnknownName
 from hqp.plots import Panel
+from hqp.sim.simulator import CONTACT_MODES
 
 CONTROLLERS: tuple[str, ...] = (*CONTROLLER_NAMES, "placo")
 """Every controller a scenario may run: hqp's registry (:data:`hqp.control.presets.CONTROLLERS`)
@@ -113,6 +114,9 @@ class Scenario(abc.ABC):
     """Full duration of a run [s] (the README's figures)."""
     controllers: tuple[str, ...] = CONTROLLERS
     """Controllers it can run."""
+    contacts: str = CONTACT_MODES[0]
+    """How the feet touch the floor in the runs: ``"unilateral"`` or ``"welded"`` (set by
+    :meth:`run`; the scenarios hand it to :func:`comparisons.common.run_controller`)."""
 
     @property
     def default_robot(self) -> str:
@@ -156,6 +160,7 @@ class Scenario(abc.ABC):
         controllers: Sequence[str] | None = None,
         duration: float | None = None,
         progress: Progress = _quiet,
+        contacts: str = CONTACT_MODES[0],
     ) -> ScenarioResult:
         """Run every requested controller on every hierarchy.
 
@@ -164,14 +169,19 @@ class Scenario(abc.ABC):
             controllers: Controllers to run (default: every one the scenario supports).
             duration: Simulated duration of each run [s] (default: the full one).
             progress: Receives one message per run (and the simulator's progress).
+            contacts: ``"unilateral"`` (MuJoCo's floor contacts, the default) or ``"welded"``
+                (the papers' rigid feet: weld equalities hold the soles).
 
         Raises:
-            UnknownName: Unknown robot or controller (lists the valid ones).
+            UnknownName: Unknown robot, controller or contact mode (lists the valid ones).
             InvalidInput: Non-positive duration.
 
         """
         robot = self.check_robot(robot)
         specs = self.specs(controllers)
+        if contacts not in CONTACT_MODES:
+            raise UnknownName("contact mode", contacts, CONTACT_MODES)
+        self.contacts = contacts
         duration = self.duration if duration is None else float(duration)
         if not duration > 0.0:
             raise InvalidInput(f"scenario {self.name!r}: duration must be positive, got {duration}")
@@ -179,9 +189,10 @@ class Scenario(abc.ABC):
         for k, spec in enumerate(specs):
             progress(
                 f"[{self.name}] run {k + 1}/{len(specs)}: controller {spec.controller}, "
-                f"hierarchy {spec.hierarchy}, {duration:g} s on {robot}"
+                f"hierarchy {spec.hierarchy}, {duration:g} s on {robot}, {contacts} contacts"
             )
             res = self.simulate(robot, spec, duration, progress)
+            res.trace.contacts = contacts
             res.metrics = {**run_metrics(res.trace), **res.metrics}
             result.runs.append(res)
         return result

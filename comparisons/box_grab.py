@@ -96,13 +96,15 @@ class BoxGrab(Scenario):
     def simulate(self, robot: str, spec: RunSpec, duration: float, progress: Progress) -> RunResult:
         """Run one controller on one hierarchy in MuJoCo."""
         rob, model, hierarchy, goals = self.build(robot, spec)
-        log, note = run_controller(spec.controller, rob, model, hierarchy, duration, progress)
+        log, note, support = run_controller(spec.controller, rob, model, hierarchy, duration,
+                                            progress, contacts=self.contacts)
         right, left = rob.hands[1], rob.hands[0]
         q = np.asarray(log.q)
         _, left_pos = positions(rob, q, (left,))
         tilt = tilt_deg(rob, q, "trunk")
         trace = trace_from_log(rob, log, goals["cog"], hand_frame=right, hand_goal=goals[right],
-                               extra={"left_hand": left_pos, "trunk_tilt_deg": tilt})
+                               extra={"left_hand": left_pos, "trunk_tilt_deg": tilt},
+                               support=support)
         metrics = {
             "left_hand_final_distance_cm": 1e2 * float(np.linalg.norm(left_pos[-1] - goals[left])),
             "trunk_tilt_max_deg": float(tilt.max()),

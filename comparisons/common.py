@@ -18,14 +18,15 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
 from hqp.control import presets
 from hqp.model import RobotModel, RobotState
 from hqp.robots import Robot, load
-from hqp.sim.run import simulate
+from hqp.sim.run import Log, simulate
+from hqp.sim.simulator import CONTACT_MODES, Simulator
 from hqp.stack import Stack
 from hqp.tasks.base import Category, Task
 from hqp.tasks.com import support_center
@@ -182,6 +183,33 @@ def kinematic_rollout(
         q = model.integrate(q, DT * v)
 
 
+@dataclass
+class Support:
+    """The support wrenches of a run, read from MuJoCo at every logged step.
+
+    Attributes:
+        foot_wrench: Wrench of the world on each foot ``(N, nfeet, 6)`` (force, torque about
+            the foot site, world-aligned) [N, N m]
+            (:meth:`hqp.sim.simulator.Simulator.foot_wrenches`).
+        sole_cop: Centre of pressure of each foot in its sole frame ``(N, nfeet, 2)`` [m]
+            (``nan`` where the normal force is not positive).
+        sole_half: Half length and half width of each sole ``(nfeet, 2)`` [m].
+
+    """
+
+    foot_wrench: np.ndarray
+    sole_cop: np.ndarray
+    sole_half: np.ndarray
+
+
+class ControllerRun(NamedTuple):
+    """What :func:`run_controller` returns: the simulator's log, the note, the support."""
+
+    log: Log
+    note: str
+    support: Support
+
+
 def run_controller(
     spec_controller: str,
     robot: Robot,
@@ -193,7 +221,8 @@ def run_controller(
     events: Sequence[Any] = (),
     wrap: Callable[[Any], Any] | None = None,
     zone: float = 0.1,
-) -> tuple[Any, str]:
+    contacts: str = CONTACT_MODES[0],
+) -> ControllerRun:
     """Simulate one controller over a hierarchy in MuJoCo.
 
     Args:
@@ -206,9 +235,15 @@ def run_controller(
         events: Timed events of :func:`hqp.sim.run.simulate`.
         wrap: Wraps the controller before the run (e.g. to move obstacles with time).
         zone: Activation-zone width of the null-space law [rad].
+        contacts: ``"unilateral"`` (MuJoCo's floor contacts) or ``"welded"`` (the papers'
+            rigid feet; :class:`hqp.sim.simulator.Simulator`).
 
     Returns:
-        The simulator's log and a note on what the controller cannot express ("" if nothing).
+        The simulator's log, a note on what the controller cannot express ("" if nothing),
+        and the support wrenches.
+
+    Raises:
+        InvalidInput: Unknown contact mode.
 
     """
     note = ""
@@ -231,5 +266,19 @@ def run_controller(
             last[0] = t
             progress(f"  t = {t:.1f} s")
 
-    log = simulate(robot, controller, duration, events, progress=tick)
-    return log, note
+    sim = Simulator(robot, dt=DT, contacts=contacts)
+    wrenches: list[np.ndarray] = []
+    cops: list[np.ndarray] = []
+
+    def record(s: Simulator, command: Any) -> None:
+        w = s.foot_wrenches()
+        wrenches.append(w)
+        cops.append(s.sole_cops(w))
+
+    log = simulate(robot, controller, duration, events, sim=sim, progress=tick, on_step=record)
+    nfeet = len(robot.feet)
+    half = np.array([[robot.contact(f).half_length, robot.contact(f).half_width]
+                     for f in robot.feet])
+    support = Support(np.array(wrenches).reshape(-1, nfeet, 6),
+                      np.array(cops).reshape(-1, nfeet, 2), half)
+    return ControllerRun(log, note, support)

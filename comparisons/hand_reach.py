@@ -203,10 +203,11 @@ class HandReach(Scenario):
     def simulate(self, robot: str, spec: RunSpec, duration: float, progress: Progress) -> RunResult:
         """Run one controller on one hierarchy in MuJoCo."""
         rob, model, hierarchy, goals = self.build(robot, spec)
-        log, note = run_controller(spec.controller, rob, model, hierarchy, duration, progress,
-                                   zone=self.parameters.zone)
+        log, note, support = run_controller(spec.controller, rob, model, hierarchy, duration,
+                                            progress, zone=self.parameters.zone,
+                                            contacts=self.contacts)
         trace = trace_from_log(rob, log, goals["cog"], hand_frame=rob.hands[1],
-                               hand_goal=goals["hand"])
+                               hand_goal=goals["hand"], support=support)
         return RunResult(spec, limit_metrics(trace), trace, self.panels(trace), note)
 
     # -- figure -----------------------------------------------------------------------------

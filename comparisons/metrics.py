@@ -23,6 +23,20 @@ Per-axis centre-of-gravity errors (``cog_error_x_*``, ``cog_error_y_*``) and
 the number of clipped torque entries (``torque_clipping_count``) and of
 control steps where the controller's solve failed and it sent its safe
 command (``safe_mode_steps``) are added.
+
+From the support wrenches MuJoCo exerts on the feet (the floor contacts, or the
+welds of ``"welded"`` mode), when the trace has them:
+
+- ``cop_outside_sole_max_mm``: the largest distance of a foot's centre of
+  pressure outside its sole rectangle over the run (0: always inside) [mm];
+- ``cop_outside_sole_s``: the first time a foot's centre of pressure left its
+  sole, or its normal force was not positive (``None``: never) [s];
+- ``normal_force_min_n``: the smallest normal force on a foot (negative: the
+  weld pulled the foot down, which no floor can do) [N].
+
+With welded feet these say whether the motion could have been made on a floor
+that only pushes: a centre of pressure outside the sole is a foot that would
+have tipped.
 """
 
 from __future__ import annotations
@@ -38,6 +52,9 @@ FINAL_WINDOW_S = 0.5
 
 FALL_HEIGHT_RATIO = 0.6
 """The robot fell when its pelvis goes below this fraction of its standing height."""
+
+SUPPORT_SETTLE_S = 0.05
+"""Support metrics start at this time [s] (the soft contacts engage during the first steps)."""
 
 
 @dataclass
@@ -73,6 +90,11 @@ class Trace:
             MuJoCo included (``None``: not measured).
         contacts: How the feet touched the floor: ``"unilateral"`` (MuJoCo's contacts) or
             ``"welded"`` (the papers' rigid feet).
+        foot_wrench: Wrench of the world on each foot ``(N, nfeet, 6)`` (force, torque about
+            the foot site) [N, N m] (``None``: not recorded).
+        sole_cop: Centre of pressure of each foot in its sole frame ``(N, nfeet, 2)`` [m]
+            (``nan`` where the normal force is not positive).
+        sole_half: Half length and half width of each sole ``(nfeet, 2)`` [m].
         extra: Further named series ``(N, ...)`` for plots (e.g. obstacle distance).
 
     """
@@ -95,6 +117,9 @@ class Trace:
     fell_at: float | None = None
     realtime_factor: float | None = None
     contacts: str = "unilateral"
+    foot_wrench: np.ndarray | None = None
+    sole_cop: np.ndarray | None = None
+    sole_half: np.ndarray | None = None
     extra: dict[str, np.ndarray] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
@@ -121,6 +146,14 @@ class Trace:
             self.torque_clipped = check_array(self.torque_clipped, (n,), "Trace: torque_clipped")
         if self.step_ms is not None:
             self.step_ms = check_array(self.step_ms, (None,), "Trace: step_ms")
+        if self.foot_wrench is not None:
+            self.foot_wrench = check_array(self.foot_wrench, (n, None, 6), "Trace: foot_wrench")
+            nfeet = self.foot_wrench.shape[1]
+            self.sole_cop = np.asarray(self.sole_cop, dtype=float)  # nan: no positive force
+            if self.sole_cop.shape != (n, nfeet, 2):
+                raise InvalidInput(f"Trace: sole_cop must have shape ({n}, {nfeet}, 2), "
+                                   f"got {self.sole_cop.shape}")
+            self.sole_half = check_array(self.sole_half, (nfeet, 2), "Trace: sole_half")
 
     @property
     def cog_error(self) -> np.ndarray:
@@ -168,6 +201,30 @@ def fell(trace: Trace) -> bool:
     return low or touched or trace.fell_at is not None
 
 
+def support_metrics(trace: Trace) -> dict[str, float | None]:
+    """Centre-of-pressure and normal-force metrics of the support wrenches (module docstring).
+
+    Empty when the trace has no support wrenches.
+    """
+    if trace.foot_wrench is None or trace.sole_cop is None or trace.sole_half is None:
+        return {}
+    keep = trace.t >= SUPPORT_SETTLE_S
+    if not keep.any():
+        keep[:] = True
+    t = trace.t[keep]
+    cop = trace.sole_cop[keep]
+    fz = trace.foot_wrench[keep][:, :, 2]
+    outside = np.maximum(np.abs(cop) - trace.sole_half[None], 0.0)
+    dist = np.linalg.norm(np.nan_to_num(outside, nan=0.0), axis=2)  # (N, nfeet)
+    bad = (dist > 0.0).any(axis=1) | np.isnan(cop).any(axis=(1, 2))
+    first = np.flatnonzero(bad)
+    return {
+        "cop_outside_sole_max_mm": 1e3 * float(dist.max()),
+        "cop_outside_sole_s": float(t[first[0]]) if first.size else None,
+        "normal_force_min_n": float(fz.min()),
+    }
+
+
 def run_metrics(trace: Trace) -> dict[str, float | int | bool | None]:
     """Return the metrics of one run (module docstring), as JSON-ready Python scalars."""
     err = trace.cog_error
@@ -203,4 +260,5 @@ def run_metrics(trace: Trace) -> dict[str, float | int | bool | None]:
         out["hand_final_distance_cm"] = 1e2 * float(
             np.linalg.norm(trace.hand[-1] - trace.hand_goal[-1])
         )
+    out.update(support_metrics(trace))
     return out

@@ -50,6 +50,7 @@ def trace_from_log(
     hand_frame: str | None = None,
     hand_goal: np.ndarray | None = None,
     extra: Mapping[str, np.ndarray] | None = None,
+    support: Any = None,
 ) -> Trace:
     """Build the trace of a run.
 
@@ -61,6 +62,7 @@ def trace_from_log(
         hand_frame: Frame of the tracked hand (``None``: no hand task).
         hand_goal: Its target ``(3,)`` or ``(N, 3)`` [m].
         extra: Further series for plots.
+        support: The run's :class:`comparisons.common.Support` (``None``: not recorded).
 
     """
     model = robot.model()
@@ -93,5 +95,8 @@ def trace_from_log(
         safe_mode=np.asarray(log.safe_mode, dtype=bool),
         fell_at=getattr(log, "fell_at", None),
         realtime_factor=log.realtime_factor if log.wall_time > 0.0 else None,
+        foot_wrench=None if support is None else support.foot_wrench[:n],
+        sole_cop=None if support is None else support.sole_cop[:n],
+        sole_half=None if support is None else support.sole_half,
         extra=dict(extra or {}),
     )

@@ -170,15 +170,16 @@ class Screwgun(Scenario):
         def wrap(controller: Any) -> Any:
             return PostureSwitch(controller, posture, work)
 
-        log, note = run_controller(spec.controller, rob, model, hierarchy, duration, progress,
-                                   wrap=wrap)
+        log, note, support = run_controller(spec.controller, rob, model, hierarchy, duration,
+                                            progress, wrap=wrap, contacts=self.contacts)
         if spec.controller == "nullspace":
             note = "the null-space law skips the internal-force rows (they act on contact forces)"
         if spec.controller == "placo":
             note += "; no internal-force or gaze task mapped to PlaCo"
         t = np.asarray(log.t)
         goal = np.array([path.sample(float(tk)).position for tk in t])
-        trace = trace_from_log(rob, log, feet[:2], hand_frame=hand_frame, hand_goal=goal)
+        trace = trace_from_log(rob, log, feet[:2], hand_frame=hand_frame, hand_goal=goal,
+                               support=support)
         metrics = self.metrics(trace)
         return RunResult(spec, metrics, trace, self.panels(trace), note)
 

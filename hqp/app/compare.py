@@ -1,9 +1,12 @@
 """``hqp compare``: run the papers' scenarios and print their table or the contract's JSON.
 
-``hqp compare NAME [--json] [--plot DIR] [--controllers ...] [--robot ...] [--duration S]``
-and ``hqp compare --all``. The table (or, with ``--json``, the JSON object of
-docs/architecture.md "Contract: the command line", alone) goes to stdout; progress
-goes to stderr. With ``--all --json`` stdout holds one object
+``hqp compare NAME [--json] [--plot DIR] [--controllers ...] [--robot ...]
+[--duration S] [--contacts unilateral|welded]`` and ``hqp compare --all``.
+``--contacts welded`` holds the soles to the floor with MuJoCo weld equalities (the seed
+papers' rigid feet) instead of MuJoCo's unilateral contacts; every run carries
+``"contacts"``. The table (or, with ``--json``, the JSON object of docs/architecture.md
+"Contract: the command line", alone) goes to stdout; progress goes to stderr. With
+``--all --json`` stdout holds one object
 ``{"scenarios": [<one contract object per scenario>]}``.
 """
 
@@ -19,6 +22,7 @@ from comparisons import CONTROLLERS, SCENARIOS, get_scenario
 from comparisons.report import format_table, write_plots
 from hqp.app.console import stdout_to_stderr
 from hqp.errors import InvalidInput
+from hqp.sim.simulator import CONTACT_MODES
 from hqp.threads import single_blas_thread
 
 
@@ -47,6 +51,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--robot", help="robot name (default: the scenario's)")
     parser.add_argument(
         "--duration", type=float, metavar="S", help="simulated duration of each run [s]"
+    )
+    parser.add_argument(
+        "--contacts", choices=CONTACT_MODES, default=CONTACT_MODES[0],
+        help="how the feet touch the floor: unilateral (MuJoCo's contacts, the default) or "
+             "welded (weld equalities hold the soles, the papers' rigid feet)",
     )
 
 
@@ -97,6 +106,7 @@ def _run(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
             controllers=args.controllers,
             duration=args.duration,
             progress=progress,
+            contacts=getattr(args, "contacts", CONTACT_MODES[0]),
         )
         results.append(result)
         if args.plot:

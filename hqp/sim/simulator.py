@@ -12,6 +12,15 @@ conversion of :mod:`hqp.sim.convert`). It does not hide the controller's faults:
 * contact state is read from MuJoCo (which geoms touch the floor, foot slip and lift-off, the
   centre of pressure of the floor contact forces), for logs and tests only, never for the
   controller's model.
+
+Two contact modes (``contacts``): ``"unilateral"`` (the default: MuJoCo's soft, unilateral
+floor contacts, the feet may slip, tip and lift off) and ``"welded"`` (the seed papers' rigid
+feet: each foot body is held by a MuJoCo weld equality at the pose it has on :meth:`reset`,
+its collisions with the floor are off, so the weld carries the whole support wrench, which
+may pull on the floor or put its centre of pressure outside the sole). In both modes
+:meth:`Simulator.foot_wrenches` reads the wrench the world exerts on each foot (MuJoCo's
+``cfrc_ext``, contacts and equality constraints included) and :meth:`Simulator.sole_cops`
+the centre of pressure it implies in each sole's frame.
 """
 
 from __future__ import annotations
@@ -56,6 +65,16 @@ class ContactReading:
     cop: np.ndarray
 
 
+CONTACT_MODES = ("unilateral", "welded")
+"""How the feet touch the floor (module docstring); the first is the default."""
+
+WELD_SOLREF = (0.002, 1.0)
+"""``solref`` of the feet's weld equalities (time constant [s], damping ratio): the stiffest
+MuJoCo advises at 1 ms (twice the time step); a passively collapsing paper-humanoid moves its
+welded feet by about 1 mm in 0.2 s."""
+WELD_SOLIMP = (0.99, 0.999, 0.001, 0.5, 2.0)
+"""``solimp`` of the feet's weld equalities (impedance close to 1: a nearly hard constraint)."""
+
 SEAT_DEPTH = 5e-5
 """Depth [m] the feet start below the floor on a default :meth:`Simulator.reset`: about
 the robots' equilibrium sink standing (0.03-0.06 mm), so both soles are in contact from
@@ -71,10 +90,12 @@ class Simulator:
         integrator: MuJoCo integrator name (default ``"implicitfast"``).
         torque_limits: Limits of the commanded torques ``(na,)`` [N m], in the controller
             model's joint order (default: the robot model's ``tau_max``).
+        contacts: ``"unilateral"`` (MuJoCo's floor contacts) or ``"welded"`` (the feet held
+            by weld equalities at their pose on :meth:`reset`; module docstring).
 
     Raises:
-        InvalidInput: A non-positive time step, unknown integrator, or an actuated joint
-            without a motor.
+        InvalidInput: A non-positive time step, unknown integrator or contact mode, or an
+            actuated joint without a motor.
 
     """
 
@@ -84,13 +105,20 @@ class Simulator:
         dt: float = 0.001,
         integrator: str = "implicitfast",
         torque_limits: np.ndarray | None = None,
+        contacts: str = CONTACT_MODES[0],
     ) -> None:
         import mujoco
 
         if not np.isfinite(dt) or dt <= 0.0:
             raise InvalidInput(f"Simulator: dt must be positive, got {dt}")
+        if contacts not in CONTACT_MODES:
+            raise InvalidInput(f"Simulator: contacts must be one of {CONTACT_MODES}, "
+                               f"got {contacts!r}")
         self.robot = robot
-        self.mj_model = robot.mujoco_model()
+        self.contact_mode = contacts
+        """``"unilateral"`` or ``"welded"``."""
+        self.mj_model = (robot.mujoco_model() if contacts == "unilateral"
+                         else _welded_model(robot))
         self.mj_data = mujoco.MjData(self.mj_model)
         try:
             self.mj_model.opt.integrator = getattr(
@@ -140,6 +168,17 @@ class Simulator:
         if min(self._foot_sites) < 0:
             raise InvalidInput(f"Simulator: foot sites {robot.feet} missing in {robot.mjcf_path}")
         self._foot_bodies = [int(self.mj_model.site_bodyid[s]) for s in self._foot_sites]
+        # bodies of each foot's subtree (a toe is part of its foot)
+        self._foot_subtrees = [[b for b in range(1, self.mj_model.nbody)
+                                if self._body_root_foot(b) == i] for i in range(len(robot.feet))]
+        self._welds = np.zeros(0, dtype=int)
+        if contacts == "welded":
+            self._welds = np.array([mujoco.mj_name2id(self.mj_model, mujoco.mjtObj.mjOBJ_EQUALITY,
+                                                      _weld_name(foot)) for foot in robot.feet])
+            for g in range(self.mj_model.ngeom):  # the weld alone holds the feet
+                if self._body_root_foot(int(self.mj_model.geom_bodyid[g])) is not None:
+                    self.mj_model.geom_contype[g] = 0
+                    self.mj_model.geom_conaffinity[g] = 0
         self._mujoco = mujoco
         self.reset()
 
@@ -165,8 +204,25 @@ class Simulator:
             q = check_array(q, (self.nq,), "Simulator: q")
         v = np.zeros(self.nv) if v is None else check_array(v, (self.nv,), "Simulator: v")
         self.set_state(q, v)
+        if self._welds.size:
+            self._weld_feet()
         self.clip_count = 0
         self.last_clipped = 0
+
+    def _weld_feet(self) -> None:
+        """Hold each welded foot at its current pose (the weld's relative pose, anchor at 0).
+
+        MuJoCo's weld data: anchor ``[0:3]``, the pose of body 2 (the world) in body 1 (the
+        foot) ``[3:10]`` (position, quaternion ``wxyz``), torque scale ``[10]``.
+        """
+        m, d = self.mj_model, self.mj_data
+        for eq, body in zip(self._welds, self._foot_bodies):
+            R = d.xmat[body].reshape(3, 3)
+            m.eq_data[eq, 0:3] = 0.0
+            m.eq_data[eq, 3:6] = -R.T @ d.xpos[body]
+            m.eq_data[eq, 6:10] = d.xquat[body] * np.array([1.0, -1.0, -1.0, -1.0])
+            m.eq_data[eq, 10] = 1.0
+        self._mujoco.mj_forward(m, d)
 
     def set_state(self, q: np.ndarray, v: np.ndarray) -> None:
         """Set the state from pinocchio's ``(q, v)``."""
@@ -261,9 +317,57 @@ class Simulator:
             normal[foot] += fn
             fz_sum += fn
             moment += fn * con.pos[:2]
-        cop = moment / fz_sum if fz_sum > 1e-9 else np.full(2, np.nan)
         feet = np.array([d.site_xpos[s] for s in self._foot_sites])
+        if self._welds.size:  # the welds carry the support: their wrenches give force and CoP
+            wrenches = self.foot_wrenches()
+            touching[:] = True
+            normal = wrenches[:, 2].copy()
+            fz_sum = float(normal.sum())
+            moment = np.zeros(2)
+            for p, w in zip(feet, wrenches):  # moment about each site -> point on the floor
+                moment += w[2] * p[:2] + np.array([-w[4], w[3]])
+        cop = moment / fz_sum if fz_sum > 1e-9 else np.full(2, np.nan)
         return ContactReading(touching, feet, tuple(sorted(others)), normal, cop)
+
+    def foot_wrenches(self) -> np.ndarray:
+        """Wrench the world exerts on each foot ``(nfeet, 6)``: force, torque about its site.
+
+        World-aligned ``[f_x, f_y, f_z, tau_x, tau_y, tau_z]`` [N, N m], from MuJoCo's
+        ``cfrc_ext`` (floor contacts in ``"unilateral"`` mode, the weld in ``"welded"`` mode)
+        summed over the foot's bodies, its torque moved from the subtree centre of mass it is
+        expressed at to the foot site. Valid after a step (or :meth:`reset`).
+        """
+        mujoco = self._mujoco
+        m, d = self.mj_model, self.mj_data
+        mujoco.mj_rnePostConstraint(m, d)
+        out = np.zeros((len(self._foot_sites), 6))
+        for i, (site, bodies) in enumerate(zip(self._foot_sites, self._foot_subtrees)):
+            p = d.site_xpos[site]
+            for b in bodies:
+                torque, force = d.cfrc_ext[b, :3], d.cfrc_ext[b, 3:]
+                c = d.subtree_com[int(m.body_rootid[b])]
+                out[i, :3] += force
+                out[i, 3:] += torque + np.cross(c - p, force)
+        return out
+
+    def sole_cops(self, wrenches: np.ndarray | None = None) -> np.ndarray:
+        """Centre of pressure of each foot's wrench in its sole frame ``(nfeet, 2)`` [m].
+
+        ``x = -tau_y / f_z``, ``y = tau_x / f_z`` in the foot site's frame (``nan`` where the
+        normal force is not positive: the foot pulls on the floor or carries nothing).
+
+        Args:
+            wrenches: :meth:`foot_wrenches` of the current instant, if already read.
+
+        """
+        w = self.foot_wrenches() if wrenches is None else np.asarray(wrenches)
+        out = np.full((len(self._foot_sites), 2), np.nan)
+        for i, site in enumerate(self._foot_sites):
+            R = self.mj_data.site_xmat[site].reshape(3, 3)
+            f, tau = R.T @ w[i, :3], R.T @ w[i, 3:]
+            if f[2] > 1e-9:
+                out[i] = (-tau[1] / f[2], tau[0] / f[2])
+        return out
 
     def sole_corners(self) -> np.ndarray:
         """World positions of the sole corners of the feet ``(nfeet, 4, 3)`` [m]."""
@@ -303,6 +407,32 @@ class Simulator:
     def fallen(self, reading: ContactReading | None = None) -> bool:
         """Whether the robot fell (:meth:`fall_reason`)."""
         return self.fall_reason(reading) is not None
+
+
+def _weld_name(foot: str) -> str:
+    """Name of the weld equality of a foot."""
+    return f"hqp_weld_{foot}"
+
+
+def _welded_model(robot: Robot) -> object:
+    """Return the robot's MuJoCo model with a weld equality per foot body (data set on reset)."""
+    import mujoco
+
+    spec = mujoco.MjSpec.from_file(str(robot.mjcf_path))
+    plain = spec.compile()
+    for foot in robot.feet:
+        site = mujoco.mj_name2id(plain, mujoco.mjtObj.mjOBJ_SITE, foot)
+        if site < 0:
+            raise InvalidInput(f"Simulator: foot site {foot!r} missing in {robot.mjcf_path}")
+        eq = spec.add_equality()
+        eq.name = _weld_name(foot)
+        eq.type = mujoco.mjtEq.mjEQ_WELD
+        eq.objtype = mujoco.mjtObj.mjOBJ_BODY
+        eq.name1 = mujoco.mj_id2name(plain, mujoco.mjtObj.mjOBJ_BODY,
+                                     int(plain.site_bodyid[site]))
+        eq.solref = list(WELD_SOLREF)
+        eq.solimp = list(WELD_SOLIMP)
+    return spec.compile()
 
 
 def _hull(points: np.ndarray) -> np.ndarray:

@@ -1,0 +1,43 @@
+"""``hqp compare --contacts welded``: the scenarios on the seed papers' rigid feet."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from comparisons import get_scenario
+from hqp.errors import UnknownName
+
+
+def test_unknown_contact_mode_is_refused_before_any_run():
+    with pytest.raises(UnknownName, match="valid contact modes: unilateral, welded"):
+        get_scenario("hand-reach").run(contacts="glued")
+
+
+def test_cli_refuses_an_unknown_contact_mode(capsys):
+    from hqp.app.cli import main
+
+    with pytest.raises(SystemExit) as exc:
+        main(["compare", "hand-reach", "--contacts", "glued"])
+    assert exc.value.code != 0
+    assert "--contacts" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_welded_runs_carry_their_mode_and_support_wrenches():
+    """Both modes, the law, 0.2 s: every run says its mode and has the support metrics."""
+    rows = {}
+    for mode in ("unilateral", "welded"):
+        result = get_scenario("hand-reach").run(controllers=["nullspace"], duration=0.2,
+                                               contacts=mode)
+        payload = json.loads(json.dumps(result.to_json()))
+        for row in payload["runs"]:
+            assert row["contacts"] == mode
+            rows[mode, row["hierarchy"]] = row
+    for (mode, _), row in rows.items():
+        assert row["fell"] is False
+        assert {"cop_outside_sole_max_mm", "cop_outside_sole_s", "normal_force_min_n"} <= set(row)
+        if mode == "welded":  # the welds push on both soles, centres of pressure inside
+            assert row["cop_outside_sole_max_mm"] == 0.0 and row["cop_outside_sole_s"] is None
+            assert row["normal_force_min_n"] > 100.0
