@@ -229,10 +229,15 @@ def test_controller_suite_quick_with_placo():
 
     rows = run(quick=True, robots=["paper-humanoid"])
     by = {r["solver"]: r for r in rows}
-    assert set(by) == {"hqp/basis/proxsuite", "nullspace", "placo"}
+    assert set(by) == {"hqp/basis/proxsuite", "nullspace", "placo", "tsid"}
     for r in rows:
         _check_row_contract(r)
         assert r["threads"] == 1 and "failed" not in r, r.get("failed")
+    tsid = by["tsid"]  # measured in its own environment, or skipped saying how to make it
+    if "skipped" in tsid:
+        assert tsid["median_ms"] is None and "python -m hqp.bench.tsid_env" in tsid["skipped"]
+    else:
+        assert tsid["tsid_version"] and tsid["median_ms"] > 0 and tsid["solve_failures"] == 0
     hqp = by["hqp/basis/proxsuite"]
     assert set(hqp["phases_ms"]) >= {"update", "rows", "solve", "report"}
     assert len(hqp["levels_ms"]) == hqp["levels"]

@@ -11,7 +11,14 @@ Per robot (``paper-humanoid``, ``g1``, ``talos``), the same states are handed to
   torques; no feasibility report yet);
 - ``nullspace``: :func:`hqp.control.presets.standing_nullspace_controller` (same stack, joint limits
   as the papers' activation zones; inequalities not enforced);
-- ``placo``: PlaCo's ``DynamicsSolver`` on the same task set (:mod:`hqp.bench.placo_step`).
+- ``placo``: PlaCo's ``DynamicsSolver`` on the same task set (:mod:`hqp.bench.placo_step`);
+- ``tsid``: TSID's ``InverseDynamicsFormulationAccForce`` on the same task set, in a worker
+  process of TSID's own environment (:mod:`hqp.bench.tsid_step`; ``python -m
+  hqp.bench.tsid_env`` creates it). Its calls are interleaved with the others' in the same
+  rounds; its times are those the worker measures around its own step (the pipe's round trip
+  is reported apart, ``round_trip_median_ms``); the row carries ``tsid_version`` and
+  ``pinocchio_version``. Without the environment the row says so (``skipped``) and has no
+  times.
 
 A unit of work is one full control step: model update, task rows, solve (and for hqp and the
 law, torques and the feasibility report). States: the ``(q, v)`` of the recorded ``stand``
@@ -39,6 +46,7 @@ from hqp.bench.accuracy import ExcessTracker, level_costs
 from hqp.bench.interleave import Samples, interleaved
 from hqp.bench.placo_step import PlacoStanding
 from hqp.bench.recorded import DATA_DIR, load
+from hqp.bench.tsid_step import TsidStanding, TsidUnavailable
 from hqp.control.native import NativeStepMirror
 from hqp.control.presets import standing_controller, standing_nullspace_controller
 from hqp.model import RobotState
@@ -53,6 +61,9 @@ NATIVE_STEP = "hqp/basis/native"
 
 T0 = 1.0
 """Control time of the first measured step [s] (after the stack's task ramps)."""
+
+TSID = "tsid"
+"""TSID's row (the contract's name)."""
 
 SLOW_SECONDS = 0.25
 """A configuration taking more CPU time than this per step (median of a probe pass over the
@@ -83,7 +94,7 @@ def configurations(backends: Sequence[str] | None = None,
     """Return the configuration names: ``hqp/<algorithm>/<backend>``, ``nullspace``, ``placo``."""
     bk = list(backends) if backends is not None else available_backends()
     return [f"hqp/{a}/{b}" for a in algorithms for b in bk if supports(b, a)] + [
-        "nullspace", "placo"]
+        "nullspace", "placo", TSID]
 
 
 class _Stepper:
@@ -99,12 +110,17 @@ class _Stepper:
         self.levels: list[list[float]] = []
         self.record = False
         self.mirror: NativeStepMirror | None = None
-        if name == "placo":
+        self.tsid: TsidStanding | None = None
+        if name == TSID:
+            self.tsid = TsidStanding(robot, dt)
+            self.ctrl = None
+        elif name == "placo":
             self.placo = PlacoStanding(robot, dt)
             self.ctrl = None
         elif name == NATIVE_STEP:
             # the Python controller sets the goals and references once; then the native step
-            ctrl = standing_controller(robot, dt=dt, backend="native", diagnostics="residuals")
+            ctrl = standing_controller(robot, dt=dt, backend="native", diagnostics="residuals",
+                                       native=False)
             q, v = sts[0]
             ctrl.step(RobotState(q, v, T0), T0)
             self.mirror = NativeStepMirror(robot, ctrl)
@@ -123,6 +139,8 @@ class _Stepper:
         self.i += 1
         if self.mirror is not None:
             return self.mirror.step(q, v, t)
+        if self.tsid is not None:
+            return self.tsid.step(q, v)
         if self.ctrl is None:
             return self.placo.step(q, v)
         cmd = self.ctrl.step(RobotState(q, v, t), t)
@@ -241,11 +259,36 @@ def run_robot(robot_name: str, names: Sequence[str], *, quick: bool = False,
     sts = states(robot_name, count=2 if quick else 8)
     steppers: dict[str, _Stepper] = {}
     failed: dict[str, str] = {}
+    skipped: dict[str, str] = {}
     for name in names:
         try:
             steppers[name] = _Stepper(name, robot, sts)
+        except TsidUnavailable as exc:
+            skipped[name] = str(exc)
+            if progress is not None:
+                progress(f"controller: {robot_name}: tsid skipped: {exc}")
         except Exception as exc:  # noqa: BLE001 - an unavailable configuration is reported
             failed[name] = f"{type(exc).__name__}: {exc}"
+    try:
+        return _measure(robot_name, names, steppers, sts, failed, skipped, quick, progress)
+    finally:
+        for st in steppers.values():
+            if st.tsid is not None:
+                st.tsid.close()
+
+
+def _worker_samples(st: _Stepper, timed: Samples) -> Samples:
+    """Return the worker's own times of the last timed calls of a worker configuration."""
+    assert st.tsid is not None
+    n = timed.samples.size
+    return Samples(np.asarray(st.tsid.wall[-n:]), timed.settled, np.asarray(st.tsid.cpu[-n:]))
+
+
+def _measure(robot_name: str, names: Sequence[str], steppers: dict[str, _Stepper],
+             sts: list[tuple[np.ndarray, np.ndarray]], failed: dict[str, str],
+             skipped: dict[str, str], quick: bool,
+             progress: Callable[[str], None] | None) -> list[dict[str, Any]]:
+    """Probe, interleave and time the configurations of one robot; return its rows."""
     probe = _probe(steppers, len(sts), failed)
     slow = {n for n in steppers if np.median(probe[n].cpu) > SLOW_SECONDS}
     for st in steppers.values():
@@ -253,7 +296,12 @@ def run_robot(robot_name: str, names: Sequence[str], *, quick: bool = False,
     fns = {n: st for n, st in steppers.items() if n not in slow}
     settings = dict(warmup=2, batch=2, min_samples=4, max_seconds=3.0) if quick else dict(
         warmup=2 * len(sts), batch=len(sts), min_samples=80, max_seconds=45.0)
-    timings = interleaved(fns, progress=progress, **settings)  # type: ignore[arg-type]
+    timings = interleaved(fns, **settings)  # type: ignore[arg-type]
+    round_trip: dict[str, Samples] = {}
+    for name, st in steppers.items():
+        if st.tsid is not None and name in timings:
+            round_trip[name] = timings[name]
+            timings[name] = _worker_samples(st, timings[name])
     ex, contract_excess = _accuracy(steppers, sts)
     n_var, n_levels, n_rows = _shape(steppers)
     rows: list[dict[str, Any]] = []
@@ -269,8 +317,19 @@ def run_robot(robot_name: str, names: Sequence[str], *, quick: bool = False,
             row.update(median_ms=None, p95_ms=None, failed=failed[name])
             rows.append(row)
             continue
+        if name in skipped:
+            row.update(median_ms=None, p95_ms=None, skipped=skipped[name])
+            rows.append(row)
+            continue
         _measured(row, steppers[name], timings[name] if name in timings else probe[name],
                   name in slow)
+        worker = steppers[name].tsid
+        if worker is not None:
+            row.update(tsid_version=worker.tsid_version,
+                       pinocchio_version=worker.pinocchio_version,
+                       solve_failures=worker.failures)
+            if name in round_trip:
+                row["round_trip_median_ms"] = round(round_trip[name].median_ms, 4)
         if name in ex:
             row["level_cost_excess"] = [float(f"{v:.3g}") for v in ex[name]]
             row["cost_excess"] = float(f"{contract_excess[name]:.3g}")
@@ -285,7 +344,8 @@ def run(*, quick: bool = False, robots: Sequence[str] | None = None,
     """Run the ``controller`` suite.
 
     Args:
-        quick: ``g1`` only, ``hqp/basis/proxsuite``, ``nullspace`` and ``placo``, a few samples
+        quick: ``g1`` only, ``hqp/basis/proxsuite``, ``nullspace``, ``placo`` and ``tsid``,
+            a few samples
             (for tests; times are not meaningful).
         robots: Robots (default :data:`ROBOTS`).
         backends: Backends (default: every installed one).
@@ -294,7 +354,7 @@ def run(*, quick: bool = False, robots: Sequence[str] | None = None,
 
     """
     if quick:
-        names = ["hqp/basis/proxsuite", "nullspace", "placo"]
+        names = ["hqp/basis/proxsuite", "nullspace", "placo", TSID]
         robot_list = list(robots) if robots else ["g1"]
     else:
         names = configurations(backends, algorithms)
@@ -303,5 +363,5 @@ def run(*, quick: bool = False, robots: Sequence[str] | None = None,
     for r in robot_list:
         if progress is not None:
             progress(f"controller: {r}")
-        rows.extend(run_robot(r, names, quick=quick))
+        rows.extend(run_robot(r, names, quick=quick, progress=progress))
     return rows
