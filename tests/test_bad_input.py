@@ -317,3 +317,12 @@ def test_a_mujoco_gl_backend_that_cannot_load_is_one_line():
     assert proc.returncode == 2 and proc.stdout == ""
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("hqp: error: MUJOCO_GL=no-such-backend")
+
+
+def test_mp4_writing_is_a_dependency(tmp_path):
+    import imageio.v2 as imageio
+
+    frames = [np.full((32, 32, 3), 40 * k, dtype=np.uint8) for k in range(5)]
+    path = tmp_path / "run.mp4"
+    imageio.mimwrite(path, frames, fps=10)
+    assert path.stat().st_size > 100
