@@ -44,6 +44,8 @@ class Panel:
         t: Times ``(N,)`` [s].
         lines: Curves drawn in the panel.
         events: Times of events drawn as thin vertical lines [s].
+        log: A logarithmic vertical axis (errors spanning decades; non-positive values are
+            not drawn).
 
     """
 
@@ -52,6 +54,7 @@ class Panel:
     t: np.ndarray
     lines: tuple[Line, ...]
     events: tuple[float, ...] = field(default_factory=tuple)
+    log: bool = False
 
 
 _STYLES = {"solid": "-", "dashed": "--", "dotted": ":"}
@@ -61,7 +64,8 @@ def plot_panels(panels: list[Panel], path: str | Path, title: str = "") -> Path:
     """Draw panels on a grid of two columns and save a PNG.
 
     The panels are lettered (a), (b), ... below their horizontal axis, as in
-    the paper's figures.
+    the paper's figures. Vertical axes show their values without an offset (matplotlib's
+    ``1e-6 + 9.2111e-1`` notation), or a logarithmic scale where the panel asks for one.
 
     Args:
         panels: Panels to draw, row by row.
@@ -107,6 +111,10 @@ def plot_panels(panels: list[Panel], path: str | Path, title: str = "") -> Path:
             colors[line.label] = curve.get_color()
         for te in panel.events:
             ax.axvline(te, color="0.6", lw=0.8)
+        if panel.log:
+            ax.set_yscale("log")
+        else:
+            ax.ticklabel_format(axis="y", useOffset=False)  # values as they are, no "1e-6+0.92"
         ax.set_title(panel.title)
         ax.set_ylabel(panel.ylabel)
         ax.set_xlabel(f"time [s]\n({chr(ord('a') + k)})")

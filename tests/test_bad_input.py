@@ -326,3 +326,42 @@ def test_mp4_writing_is_a_dependency(tmp_path):
     path = tmp_path / "run.mp4"
     imageio.mimwrite(path, frames, fps=10)
     assert path.stat().st_size > 100
+
+
+# -- figures ------------------------------------------------------------------------------------
+
+def test_figures_show_values_without_an_offset_and_task_errors_on_a_log_axis(tmp_path,
+                                                                           monkeypatch):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from hqp.plots import Line, Panel, plot_panels
+
+    figures = []
+    monkeypatch.setattr(plt, "close", figures.append)
+    t = np.linspace(0.0, 1.0, 50)
+    plot_panels([Panel("CoG height", "z [m]", t, (Line("CoG", 0.9211 + 1e-6 * t),)),
+                 Panel("errors", "error", t, (Line("hand", np.exp(-5 * t)),), log=True)],
+                tmp_path / "f.png")
+    height, errors = figures[0].axes[:2]
+    height.figure.canvas.draw()
+    assert height.yaxis.get_major_formatter().get_offset() == ""
+    assert errors.get_yscale() == "log"
+
+
+@pytest.mark.slow
+def test_hqp_run_reach_plots_the_hand_task(tmp_path, monkeypatch):
+    from hqp.app import run as run_module
+
+    drawn = {}
+
+    def capture(panels, path, title=""):
+        drawn["panels"] = panels
+        return Path(path)
+
+    monkeypatch.setattr(run_module, "plot_panels", capture)
+    run_behavior("reach", duration=0.6, plot=tmp_path / "reach.png")
+    errors = next(p for p in drawn["panels"] if p.title.startswith("Task errors"))
+    assert {"hand", "balance", "posture"} <= {line.label for line in errors.lines}

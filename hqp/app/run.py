@@ -111,7 +111,8 @@ class _Meter:
         self.step_times: list[float] = []
         self.ratio = 0.0
         self.trace: dict[str, list[Any]] | None = (
-            {"t": [], "com": [], "vz": [], "feet": [], "fn": [], "tau": []} if trace else None)
+            {"t": [], "com": [], "vz": [], "feet": [], "fn": [], "tau": [], "errors": []}
+            if trace else None)
 
     def before_step(self, step: Step) -> None:
         """Figures of the command (before MuJoCo's step)."""
@@ -146,7 +147,8 @@ class _Meter:
             for key, value in (("t", t_new), ("com", self.model.com[2]),
                                ("vz", self.model.com_velocity[2]),
                                ("feet", reading.foot_position[:, 2].copy()),
-                               ("fn", reading.normal_force.copy()), ("tau", self.ratio)):
+                               ("fn", reading.normal_force.copy()), ("tau", self.ratio),
+                               ("errors", self.behavior.task_errors())):
                 self.trace[key].append(value)
         planner = self.behavior.planner
         if planner is not None and planner.trajectory is not None:
@@ -234,8 +236,9 @@ def run_behavior(
         backend: QP backend of the HQP controller (default: the behavior's, see
             :func:`~hqp.behaviors.setup.prepare`).
         plot: Write a PNG of the run here (centre-of-gravity height and vertical velocity,
-            feet heights, normal forces, largest torque ratio; phase changes as vertical
-            lines); its path is reported as ``plot`` in the metrics.
+            feet heights, normal forces, largest torque ratio, the active tasks' error
+            norms; phase changes as vertical lines); its path is reported as ``plot`` in the
+            metrics.
 
     Raises:
         InvalidInput: A duration that is not a positive number, an output path that cannot
@@ -296,6 +299,12 @@ def _plot_run(trace: dict[str, list[Any]], phases: list[dict[str, Any]], feet: l
               (Line("max |tau| / tau_max", np.asarray(trace["tau"])),
                Line("limit", np.ones_like(t), "dashed")), events),
     ]
+    tasks = sorted({name for step in trace["errors"] for name in step})
+    if tasks:
+        panels.append(Panel(
+            "Task errors (norm, each task's units)", "error [m or rad]", t,
+            tuple(Line(n, np.array([step.get(n, np.nan) for step in trace["errors"]]))
+                  for n in tasks), events, log=True))
     names = ", ".join(f"{p['phase']} {p['t']:g} s" for p in phases)
     return plot_panels(panels, path, title=f"{title}\nphases: {names}")
 

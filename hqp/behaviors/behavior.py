@@ -169,6 +169,11 @@ class Behavior:
             },
         }
 
+    def task_errors(self) -> dict[str, float]:
+        """Error norm of each active task at its last rows (task units: m, rad, ...)."""
+        errors = {name: self._error(name) for name in self._levels}
+        return {name: e for name, e in errors.items() if np.isfinite(e)}
+
     def start(self, state: RobotState, t: float) -> None:
         """Enter the initial phase at time ``t`` [s] (the controller's model is updated here)."""
         model = self.controller.model
