@@ -127,6 +127,15 @@ def test_a_malformed_inputs_line_names_file_and_line(tmp_path, line, expected):
     assert str(path) in str(info.value) and "2" in str(info.value)
 
 
+def test_a_bad_line_late_in_the_inputs_file_fails_when_the_stream_opens(tmp_path):
+    path = tmp_path / "inputs.jsonl"
+    path.write_text('{"t": 0.0, "goal": 0.5}\n{"t": 1.0, "goal": 0.6}\n'
+                    '{"t": 5.0, "goal": [1, 2]}\n')
+    specs = {"goal": InputSpec("goal", (), np.array(0.0), False, "")}
+    with pytest.raises(InvalidInput, match=f"{re.escape(str(path))}: line 3: goal expected"):
+        InputStream(specs, path)
+
+
 # -- checks that need the robot and the controller, still at load ---------------------------
 
 @pytest.mark.parametrize(("level", "goal", "key", "expected"), [

@@ -389,8 +389,8 @@ class Behavior:
                     values[gname] = expr.evaluate(env)
                 except ExpressionError as exc:
                     raise BehaviorFileError(
-                        f"{self.spec.path}: goal {gname} of task {ts.name!r} in phase "
-                        f"{phase.name!r}: {exc}") from None
+                        f"{self.spec.path}: phase {phase.name!r}, task {ts.name!r}, "
+                        f"{gname}: {exc}") from None
             if _same_values(values, self._goals_set.get(ts.name)):
                 # unchanged: setting it again would replace the trajectory of a task that is
                 # ramping in (its goal starts at its current value, see hqp.stack) by a step

@@ -34,9 +34,10 @@ class InputStream:
         path: Inputs file (JSON Lines); ``None``: the defaults only.
 
     Raises:
-        InvalidInput: A line that is not JSON, has no ``t``, names an unknown
-            input, or holds a value of the wrong shape (the message names the
-            file and line); or an input without default and without samples.
+        InvalidInput: A line that is not JSON, has no finite ``t`` or a time before the
+            last, names an unknown input, or holds a value of the wrong shape (the message
+            names the file and line: every line the file holds when the stream opens is
+            checked then, before a run); or an input without default and without samples.
 
     """
 
@@ -65,6 +66,7 @@ class InputStream:
                 for i, obj in enumerate(samples):
                     self._add(obj, f"samples[{i}]")
             else:
+                self._check_lines(self.path)
                 self._file = self.path.open()
         self._read(np.inf if self._file is None else 0.0)
 
@@ -74,7 +76,37 @@ class InputStream:
             self._file.close()
             self._file = None
 
+    def _check_lines(self, path: Path) -> None:
+        """Check every complete line the file holds now, before a run.
+
+        Lines appended later are checked as they are read.
+        """
+        last_t = -np.inf
+        for number, line in enumerate(path.read_text().splitlines(keepends=True), 1):
+            if not line.endswith("\n") or not line.strip():
+                continue
+            where = f"line {number}"
+            last_t = self._parse(self._json(line, number), where, last_t)[0]
+
+    def _json(self, line: str, number: int) -> object:
+        try:
+            return json.loads(line)
+        except RecursionError:
+            raise InvalidInput(f"inputs file {self.path}:{number}: nested too deeply") \
+                from None
+        except json.JSONDecodeError as exc:
+            raise InvalidInput(f"inputs file {self.path}:{number}: not JSON ({exc.msg})") \
+                from None
+
     def _add(self, obj: object, where: str) -> None:
+        t, values = self._parse(obj, where, self._last_t)
+        self._last_t = t
+        for key, arr in values.items():
+            self._samples[key].append((t, arr))
+
+    def _parse(self, obj: object, where: str, last_t: float
+               ) -> tuple[float, dict[str, np.ndarray]]:
+        """Return a sample's time and values, checked (see the class's errors)."""
         if not isinstance(obj, dict) or "t" not in obj:
             raise InvalidInput(f"inputs file {self.path}: {where}: expected an object with 't'")
         t = obj["t"]
@@ -82,9 +114,9 @@ class InputStream:
             raise InvalidInput(f"inputs file {self.path}: {where}: 't' expected a finite "
                                f"time [s], got {t!r}")
         t = float(t)
-        if t < self._last_t:
+        if t < last_t:
             raise InvalidInput(f"inputs file {self.path}: {where}: times must not decrease")
-        self._last_t = t
+        values: dict[str, np.ndarray] = {}
         for key, value in obj.items():
             if key == "t":
                 continue
@@ -100,7 +132,8 @@ class InputStream:
                     or not np.isfinite(arr).all():
                 raise InvalidInput(f"inputs file {self.path}: {where}: {key} expected shape "
                                    f"{list(spec.shape)} of finite numbers, got {value!r}")
-            self._samples[key].append((t, arr))
+            values[key] = arr
+        return t, values
 
     def _read(self, t: float) -> None:
         """Read lines until one lies beyond ``t`` (one sample ahead, for interpolation)."""
@@ -115,15 +148,7 @@ class InputStream:
             self._line += 1
             if not line.strip():
                 continue
-            try:
-                obj = json.loads(line)
-            except RecursionError:
-                raise InvalidInput(f"inputs file {self.path}:{self._line}: nested too deeply") \
-                    from None
-            except json.JSONDecodeError as exc:
-                raise InvalidInput(f"inputs file {self.path}:{self._line}: not JSON ({exc.msg})") \
-                    from None
-            self._add(obj, f"line {self._line}")
+            self._add(self._json(line, self._line), f"line {self._line}")
 
     def value(self, name: str, t: float) -> np.ndarray:
         """Value of input ``name`` at simulated time ``t`` [s].
