@@ -94,9 +94,9 @@ def solve_qp(backend: QPBackend, slot: Any, H: np.ndarray, g: np.ndarray,
                          backend.name, slot)
         else:
             _WARNED_LAST_RESORT.add(key)
-            logger.warning("backend %s returned no finite solution on QP %s; trying quadprog "
-                           "(further occurrences on this QP are logged at debug level)",
-                           backend.name, slot)
+            # part of normal operation on real whole-body stacks: not a warning (issue 19)
+            logger.debug("backend %s returned no finite solution on QP %s; trying quadprog "
+                         "(first time on this QP)", backend.name, slot)
         last = _last_resort()
         if last is not None:
             v2, ok2 = last.solve(slot, H, g, E, e, C, lo, up)
