@@ -1,10 +1,15 @@
 """Find the largest horizontal push a standing robot survives (HQP controller or null-space law).
 
+Kept for its flags; it is now the ``push-map`` study of :mod:`hqp.study` (the same as
+``hqp sweep push-map``): the directions run in parallel on Ray (a local instance, or
+``--address``), every simulation is a record of ``--out`` (JSON Lines, resumable with
+``--resume``), and the summary JSON goes to stdout.
+
 A push is a constant horizontal force on the floating base for ``--push-duration`` seconds,
 starting at ``--push-at``; the run continues until ``--duration`` and the robot survives when
 it has not fallen (pelvis above 0.6 x its standing height, only the feet touching the floor).
 The largest surviving force is found by bisection on the force magnitude, in each requested
-direction; the result (and every run) is printed as JSON on stdout, progress on stderr.
+direction (:mod:`hqp.study.pushmap`).
 
 Not run in CI (minutes of simulation). Example::
 
@@ -16,49 +21,14 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import sys
-import time
 
 from hqp.control.presets import CONTROLLER_NAMES
-
-
-def survives(robot_name: str, force: float, angle_deg: float, args: argparse.Namespace) -> dict:
-    """One run: push of ``force`` [N] at ``angle_deg`` (0: +x forward, 90: +y left)."""
-    import numpy as np
-
-    import hqp.robots as robots
-    from hqp.control.presets import make_standing_controller
-    from hqp.sim import Push, simulate
-
-    robot = robots.load(robot_name)
-    extra: dict = {}
-    if args.controller == "nullspace":
-        extra["internal_forces"] = args.internal_forces
-        if args.law_zones:
-            extra.update(support_zone=args.law_zones[0], torque_zone=args.law_zones[1])
-    controller = make_standing_controller(args.controller, robot, backend=args.backend,
-                                          diagnostics="residuals", **extra)
-    a = math.radians(angle_deg)
-    push = Push(args.push_at, (force * math.cos(a), force * math.sin(a), 0.0), args.push_duration)
-    start = time.perf_counter()
-    log = simulate(robot, controller, args.duration, [push])
-    return {
-        "force_n": force,
-        "impulse_ns": force * args.push_duration,
-        "angle_deg": angle_deg,
-        "fell": log.fell,
-        "fell_at": log.fell_at,
-        "clip_count": log.clip_count,
-        "safe_mode_steps": int(log.safe_mode.sum()),
-        "max_foot_slip_m": float(log.foot_slip().max()),
-        "min_support_margin_m": float(np.nanmin(log.support_margin)),
-        "wall_s": time.perf_counter() - start,
-    }
+from hqp.study import RecordFile, connect, make_plan, run_study, study_from_dict
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Bisection on the push force; JSON on stdout."""
+    """Bisection on the push force in every direction, on Ray; JSON on stdout."""
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--robot", default="paper-humanoid")
     p.add_argument("--directions", type=float, nargs="+", default=[0.0],
@@ -68,7 +38,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--duration", type=float, default=2.0, help="length of each run [s]")
     p.add_argument("--max-force", type=float, default=800.0, help="upper end of the search [N]")
     p.add_argument("--tolerance", type=float, default=10.0, help="bisection resolution [N]")
-    p.add_argument("--backend", default="proxsuite", help="QP backend of the HQP controller")
+    p.add_argument("--backend", default=None,
+                   help="QP backend of the HQP controller (default: the controller's)")
     p.add_argument("--controller", default="hqp", choices=CONTROLLER_NAMES,
                    help="standing controller: HQP or the papers' null-space law")
     p.add_argument("--law-zones", type=float, nargs=2, metavar=("SUPPORT", "TORQUE"),
@@ -77,38 +48,36 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--internal-forces", default="min-norm",
                    choices=("none", "min-norm", "balanced"),
                    help="null-space law only: choice of the internal contact forces")
+    p.add_argument("--timeout", type=float, default=0.0,
+                   help="wall-clock limit of one simulation [s] (0: none)")
+    p.add_argument("--workers", type=int, default=None, help="CPUs of the local Ray instance")
+    p.add_argument("--address", default=None, help="a running Ray cluster")
+    p.add_argument("--out", default="push_recovery.jsonl", help="records (JSON Lines)")
+    p.add_argument("--resume", action="store_true", help="reuse the records of --out")
     args = p.parse_args(argv)
 
-    results = []
-    for angle in args.directions:
-        lo, hi = 0.0, args.max_force
-        runs = []
-        top = survives(args.robot, hi, angle, args)
-        runs.append(top)
-        print(f"[{angle:g} deg] {hi:.0f} N: {'fell' if top['fell'] else 'survived'}",
-              file=sys.stderr)
-        if not top["fell"]:
-            lo = hi
-        while hi - lo > args.tolerance and top["fell"]:
-            mid = 0.5 * (lo + hi)
-            run = survives(args.robot, mid, angle, args)
-            runs.append(run)
-            print(f"[{angle:g} deg] {mid:.0f} N: {'fell' if run['fell'] else 'survived'} "
-                  f"({run['wall_s']:.0f} s)", file=sys.stderr)
-            if run["fell"]:
-                hi = mid
-            else:
-                lo = mid
-        results.append({"angle_deg": angle, "largest_survived_n": lo,
-                        "largest_survived_impulse_ns": lo * args.push_duration,
-                        "smallest_fallen_n": hi if lo < hi else None, "runs": runs})
-    print(json.dumps({"robot": args.robot, "push_duration_s": args.push_duration,
-                      "push_at_s": args.push_at, "run_duration_s": args.duration,
-                      "controller": args.controller, "law_zones": args.law_zones,
-                      "internal_forces": args.internal_forces,
-                      "backend": args.backend,
-                      "directions": results}, indent=1))
-    return 0
+    fixed: dict = {} if args.backend is None else {"backend": args.backend}
+    if args.controller == "nullspace":
+        fixed["internal_forces"] = args.internal_forces
+        if args.law_zones:
+            fixed.update(support_zone=args.law_zones[0], torque_zone=args.law_zones[1])
+    study = study_from_dict({
+        "study": "push-map", "name": "push_recovery", "controllers": [args.controller],
+        "robot": args.robot, "duration": args.duration, "timeout": args.timeout,
+        "fixed": fixed, "push": {"directions": args.directions, "max_force": args.max_force,
+                                 "tolerance": args.tolerance, "at": args.push_at,
+                                 "duration": args.push_duration}})
+    make_plan(study)
+    records = RecordFile(args.out, resume=args.resume, overwrite=not args.resume)
+    ray = connect(args.address, args.workers)
+    try:
+        summary = run_study(study, records, ray, progress=lambda done, expected: print(
+            f"{done}/{expected} simulations", file=sys.stderr))
+    finally:
+        if args.address is None:
+            ray.shutdown()
+    print(json.dumps(summary, indent=1))
+    return 1 if summary["failed"] else 0
 
 
 if __name__ == "__main__":
