@@ -222,6 +222,7 @@ def run_controller(
     wrap: Callable[[Any], Any] | None = None,
     zone: float = 0.1,
     contacts: str = CONTACT_MODES[0],
+    torque_scale: float = 1.0,
 ) -> ControllerRun:
     """Simulate one controller over a hierarchy in MuJoCo.
 
@@ -237,6 +238,8 @@ def run_controller(
         zone: Activation-zone width of the null-space law [rad].
         contacts: ``"unilateral"`` (MuJoCo's floor contacts) or ``"welded"`` (the papers'
             rigid feet; :class:`hqp.sim.simulator.Simulator`).
+        torque_scale: Factor on the torque limits of the controller's model and the
+            simulator's motors (1: the robot's; the seed papers' simulations had none).
 
     Returns:
         The simulator's log, a note on what the controller cannot express ("" if nothing),
@@ -247,6 +250,8 @@ def run_controller(
 
     """
     note = ""
+    if torque_scale != 1.0:
+        model.tau_max = model.tau_max * float(torque_scale)
     if spec_controller == "placo":
         from comparisons.placo_runner import PlacoController, placo_note
 
@@ -266,7 +271,7 @@ def run_controller(
             last[0] = t
             progress(f"  t = {t:.1f} s")
 
-    sim = Simulator(robot, dt=DT, contacts=contacts)
+    sim = Simulator(robot, dt=DT, contacts=contacts, torque_limits=model.tau_max)
     wrenches: list[np.ndarray] = []
     cops: list[np.ndarray] = []
 

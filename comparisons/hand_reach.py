@@ -97,6 +97,9 @@ class HandReachParameters:
         posture_gains: ``(kp, kv)`` of the symmetry posture.
         shared_weights: ``(cog, hand)`` weights in the ``shared`` level.
         zone: Activation-zone width of the null-space law's joint limits [rad].
+        torque_scale: Factor on the robot's torque limits (controller model and motors; the
+            seed's law-based simulation had no torque limits:
+            :mod:`comparisons.law_conditions`).
 
     """
 
@@ -107,6 +110,7 @@ class HandReachParameters:
     posture_gains: tuple[float, float] = (25.0, 10.0)
     shared_weights: tuple[float, float] = (1.0, 1.0)
     zone: float = 0.1
+    torque_scale: float = 1.0
 
 
 PLOTTED_JOINTS = ("right_elbow", "right_knee", "right_hip_pitch", "right_ankle_pitch")
@@ -205,9 +209,13 @@ class HandReach(Scenario):
         rob, model, hierarchy, goals = self.build(robot, spec)
         log, note, support = run_controller(spec.controller, rob, model, hierarchy, duration,
                                             progress, zone=self.parameters.zone,
-                                            contacts=self.contacts)
+                                            contacts=self.contacts,
+                                            torque_scale=self.parameters.torque_scale)
         trace = trace_from_log(rob, log, goals["cog"], hand_frame=rob.hands[1],
-                               hand_goal=goals["hand"], support=support)
+                               hand_goal=goals["hand"], support=support,
+                               extra={"tau": np.asarray(log.tau),
+                                      "tau_max": np.broadcast_to(model.tau_max,
+                                                                 np.shape(log.tau))})
         return RunResult(spec, limit_metrics(trace), trace, self.panels(trace), note)
 
     # -- figure -----------------------------------------------------------------------------
