@@ -1,7 +1,8 @@
 """A study on Ray: every simulation one task, results streamed to the records file.
 
 :func:`connect` starts a local Ray instance (``ray.init()`` on this machine, ``workers``
-CPUs, its processes on the loopback interface, no usage statistics sent) or joins an
+CPUs, its processes on the loopback interface, workers at nice 0 rather than Ray's 15, no
+usage statistics sent) or joins an
 existing cluster (``address``). :func:`run_study` submits the simulations a plan hands out
 (:class:`~hqp.study.pushmap.PushMapPlan`, :class:`~hqp.study.grid.GridPlan`) as Ray tasks
 of one CPU each, waits for them as they finish (:func:`ray.wait`), writes each record at
@@ -93,9 +94,11 @@ def connect(address: str | None = None, workers: int | None = None) -> ModuleTyp
     """
     if address is None:
         # a local instance on the loopback interface (read when Ray is imported), no
-        # usage statistics
+        # usage statistics, workers at the machine's usual priority (Ray's default, nice 15,
+        # starves the simulations on a machine shared with other work)
         os.environ.setdefault("RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER", "0")
         os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
+        os.environ.setdefault("RAY_worker_niceness", "0")
     try:
         ray = importlib.import_module("ray")
     except ImportError:

@@ -27,6 +27,15 @@ def _pyplot() -> Any:
     return plt
 
 
+def _save(plt: Any, fig: Any, path: str | Path) -> Path:
+    """Write a figure as a PNG (its folder created) and close it."""
+    out = Path(path)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, dpi=110)
+    plt.close(fig)
+    return out
+
+
 def _survived(row: dict[str, Any]) -> float:
     """Radius of a direction: its largest push survived [N] (0: none; nan: unfinished)."""
     if row["largest_survived_n"] is not None:
@@ -67,17 +76,16 @@ def plot_push_map(summary: dict[str, Any], path: str | Path, title: str = "") ->
                     color=line.get_color(), ms=9, label=f"{controller}: a simulation failed")
     ax.set_theta_zero_location("N")  # forward (+x) up, left (+y) to the left
     ax.set_theta_direction(1)
+    ax.set_xticks(np.radians(np.arange(0, 360, 45)),
+                  ["0° forward", "45°", "90° left", "135°", "180° back", "225°", "270° right",
+                   "315°"])
     ax.set_rlabel_position(200)
     ax.set_title(title or "Largest push survived [N] by direction "
                  f"(push of {summary.get('push_duration_s', 0.1):g} s)", pad=18)
     ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.06), ncol=1, fontsize=8,
               frameon=False)
     fig.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return _save(plt, fig, path)
 
 
 def _number(value: Any) -> float:
@@ -141,8 +149,4 @@ def plot_grid(summary: dict[str, Any], path: str | Path, metric: str = "fell",
     fig.colorbar(image, ax=list(axes[0]), label=metric)
     fig.suptitle(title or f"{summary.get('name', 'grid')}: {metric}"
                  + (f" (mean over {', '.join(names[2:])})" if len(names) > 2 else ""))
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return _save(plt, fig, path)
