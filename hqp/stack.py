@@ -522,6 +522,23 @@ class Stack:
             owner.max_normal_force = c.f_max_nominal  # type: ignore[attr-defined]
         c.f_max_nominal = None
 
+    def steady(self, t: float) -> bool:
+        """Whether the levels at ``t`` hold every task's own rows and nothing else.
+
+        True when no task ramps in (or waits for its goal ramp), no contact unloads or is
+        released without an owner holding its slot, and no blend event waits: then
+        :meth:`advance` changes nothing and :meth:`build` stacks the tasks' rows as they are,
+        which is what the native step computes (``hqp.control.native``).
+        """
+        if self._events:
+            return False
+        for c in self._contacts.values():
+            if c.mode is ContactMode.UNLOADING:
+                return False
+            if c.mode is ContactMode.INACTIVE and not self._self_managed(c.name):
+                return False
+        return not any(e.goal_ramp_pending or self._ramping(e, t) for e in self._tasks)
+
     def pop_events(self) -> list[BlendEvent]:
         """Return and forget the blend events recorded since the last call."""
         events, self._events = self._events, []

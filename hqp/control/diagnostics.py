@@ -187,16 +187,26 @@ class Diagnostics:
                 sigma = float(sv[m_rows - 1]) if sv.size >= m_rows else 0.0
         else:
             sigma = float(level_sigma)
+        status = self.classify(residual, sigma, rows.A is not None)
         yields_to = None
-        if residual > self.tolerance:
-            status = Feasibility.CONFLICT
-            if self.full:
-                yields_to = self._yields_to(rows, r, bases, built, span)
-        elif rows.A is not None and np.isfinite(sigma) and sigma < self.singular_tolerance:
-            status = Feasibility.SINGULAR
-        else:
-            status = Feasibility.SATISFIED
+        if status is Feasibility.CONFLICT and self.full:
+            yields_to = self._yields_to(rows, r, bases, built, span)
         return TaskStatus(span.name, span.level, status, residual, yields_to, sigma)
+
+    def classify(self, residual: float, sigma: float, equalities: bool) -> Feasibility:
+        """Return the status of a task from its unweighted residual norm and ``sigma_min``.
+
+        Args:
+            residual: Norm of the task's residual at the solution.
+            sigma: Its projected smallest singular value (``nan``: not computed).
+            equalities: Whether it has equality rows (only those can be singular).
+
+        """
+        if residual > self.tolerance:
+            return Feasibility.CONFLICT
+        if equalities and np.isfinite(sigma) and sigma < self.singular_tolerance:
+            return Feasibility.SINGULAR
+        return Feasibility.SATISFIED
 
     def _yields_to(self, rows: Rows, r: np.ndarray, bases: list[np.ndarray],
                    built: BuiltStack, span: TaskSpan) -> int | None:

@@ -8,9 +8,17 @@ interface and the test oracle (``tests/test_core_step.py`` holds the two equal).
 
 Supported today: the standing set (floating-base dynamics, contacts and their limits,
 torque limits, viable joint limits with a fixed or support-dependent braking, CoG,
-centroidal momentum, orientation, position and posture tasks) with fixed goals, in a
-steady stack (no task ramping in, no contact unloading). Anything else raises
-:class:`NotSupported`; the Python step is the path for it.
+centroidal momentum, orientation, position and posture tasks) with goals and trajectories,
+contacts made and released, in a steady stack (no task ramping in, no contact unloading, no
+torque blend; :meth:`hqp.stack.Stack.steady`). Anything else raises :class:`NotSupported`
+(a task without a kernel) or is left to the Python step for that step (a stack that is not
+steady).
+
+:class:`NativeEngine` is what a :class:`~hqp.control.servo.WholeBodyController` runs: the
+mirror of its stack, rebuilt when the stack's structure or a task's parameters change, and
+the command of a steady step with its feasibility report (the report's statuses computed by
+:class:`~hqp.control.diagnostics.Diagnostics` from the native levels, the one place they are
+computed).
 """
 
 from __future__ import annotations
@@ -20,8 +28,14 @@ from typing import Any
 import numpy as np
 
 from hqp._core import _ext as _core_ext
+from hqp.control.command import Feasibility, TaskStatus
+from hqp.control.diagnostics import Diagnostics
 from hqp.errors import HQPError
 from hqp.robots.robot import ROOT_JOINT, Robot
+from hqp.solver.level import Level
+from hqp.solver.solution import LevelReport, Solution
+from hqp.stack import BuiltStack, Stack, TaskSpan
+from hqp.tasks.base import Rows
 from hqp.tasks.centroidal import CentroidalMomentumTask
 from hqp.tasks.com import CoMTask
 from hqp.tasks.contact import Contact, ContactLimits
@@ -79,10 +93,16 @@ class NativeStepMirror:
         self._frame = robot_core.frame_id
         self._goals: list[tuple[int, Any, bool]] = []  # (handle, task, orientation)
         self._braking: list[tuple[int, JointLimits]] = []
-        contacts: dict[str, int] = {}
+        self._contacts: dict[str, int] = {}
+        self._names: list[str] = []  # task name by handle
+        self._entries: list[tuple[Any, ...]] | None = None  # row placement, after a step
         for task in stack.tasks:
             level = stack.level_of_task(task.name)
-            self._add(core, task, level, contacts)
+            self._add(core, task, level, self._contacts)
+            self._names.append(task.name)
+        self._pushed: dict[str, tuple[bool, Any]] = {
+            t.name: (t.active, None if t.reference is None else t.reference.homogeneous.copy())
+            for t in stack.tasks if isinstance(t, Contact)}
 
     def _add(self, core: Any, task: Any, level: int, contacts: dict[str, int]) -> None:
         s, w, model = self.step_core, task.weight, self.model
@@ -157,8 +177,172 @@ class NativeStepMirror:
         for handle, task in self._braking:
             s.set_braking(handle, np.asarray(task.braking_deceleration(self.model), dtype=float))
 
+    def sync_contacts(self) -> bool:
+        """Push each contact's activation and stabilisation reference to its kernel.
+
+        Returns:
+            False when a contact is active with its reference still to be captured (the
+            Python step captures it at its next rows); True otherwise.
+
+        """
+        for task in self.stack.tasks:
+            if not isinstance(task, Contact):
+                continue
+            if task.active and task.reference is None and task.kp > 0.0:
+                return False
+            ref = None if task.reference is None else task.reference.homogeneous
+            active, pushed = self._pushed[task.name]
+            if active == task.active and (
+                    (ref is None and pushed is None)
+                    or (ref is not None and pushed is not None and np.array_equal(ref, pushed))):
+                continue
+            kernel = self.step_core.contact(self._contacts[task.name])
+            if not task.active:
+                kernel.deactivate()
+            elif ref is None:
+                kernel.activate()
+            else:
+                kernel.activate(ref)
+            self._pushed[task.name] = (task.active, None if ref is None else ref.copy())
+        return True
+
     def step(self, q: np.ndarray, v: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray]:
-        """One native step at ``(q, v)`` and time ``t``: ``(x, tau)``."""
+        """One native step at ``(q, v)`` and time ``t``: ``(x, tau)``.
+
+        Raises:
+            RuntimeError: The solve failed (the message says why).
+
+        """
         self.push_goals(t)
         self.step_core.step(q, v, self.dt)
         return self.step_core.x, self.step_core.tau
+
+    def report(self, diagnostics: Diagnostics) -> tuple[tuple[TaskStatus, ...],
+                                                     tuple[float, ...], BuiltStack | None]:
+        """Return the last step's task statuses, level costs and (full mode) built levels.
+
+        Each task's residual is its kernel's (computed in the step); its ``sigma_min`` is its
+        level's (``"residuals"`` mode) or its rows' projected on what the levels above leave
+        free (``"full"``, ``NativeStep.diagnose``), as the Python step's diagnostics have them.
+        When a task is in conflict under ``"full"``, the statuses (and the level it yields
+        to) are :meth:`~hqp.control.diagnostics.Diagnostics.hqp_statuses` on :meth:`built`.
+        """
+        core = self.step_core
+        if self._entries is None:
+            self._entries = sorted(enumerate(core.entry(h) for h in range(len(self._names))),
+                                   key=lambda e: e[1][2])
+        costs, level_sigma = core.level_summary()
+        sigmas = core.diagnose() if diagnostics.full else None
+        residuals = core.residuals
+        out = []
+        for handle, (_kind, level, built_level, _e0, neq, _i0, nin, _w) in self._entries:
+            if neq + nin == 0 or built_level < 0:
+                continue
+            if not neq:
+                sigma = float("nan")
+            elif sigmas is None:
+                sigma = float(level_sigma[built_level])
+            else:
+                sigma = float(sigmas[handle])
+            residual = float(residuals[handle])
+            status = diagnostics.classify(residual, sigma, neq > 0)
+            if sigmas is not None and status is Feasibility.CONFLICT:
+                # the level a conflicting task yields to: the Python diagnostics, on the
+                # native levels
+                built, solution = self.built()
+                return (diagnostics.hqp_statuses(built, solution),
+                        tuple(float(c) for c in costs), built)
+            out.append(TaskStatus(self._names[handle], level, status, residual, None, sigma))
+        return tuple(out), tuple(float(c) for c in costs), None
+
+    def built(self) -> tuple[BuiltStack, Solution]:
+        """Return the last step's levels, task rows and solver reports, as Python has them.
+
+        The rows of each task are its kernel's rows in the native levels divided by
+        ``sqrt(weight)`` (unweighted, as :class:`~hqp.stack.BuiltStack` holds them).
+        """
+        core = self.step_core
+        n = core.n
+        raw = core.levels()
+        levels, reports, index = [], [], []
+        names = self.stack.level_names
+        for k, (level, A, b, C, lo, up) in enumerate(raw):
+            cost, sigma, state = core.result(k)
+            levels.append(Level(A=A if A.shape[0] else None, b=b if A.shape[0] else None,
+                                C=C if C.shape[0] else None, lower=lo if C.shape[0] else None,
+                                upper=up if C.shape[0] else None, name=names[level]))
+            reports.append(LevelReport(names[level], cost, True, np.flatnonzero(state > 0),
+                                       np.flatnonzero(state > 1), sigma, np.zeros(0),
+                                       np.zeros(0)))
+            index.append(level)
+        spans, rows = [], {}
+        for handle, name in enumerate(self._names):
+            _kind, level, built, eq0, neq, in0, nin, sqrt_w = core.entry(handle)
+            if neq + nin == 0 or built < 0:
+                continue
+            _lv, A, b, C, lo, up = raw[built]
+            rows[name] = Rows(
+                A=A[eq0:eq0 + neq] / sqrt_w if neq else None,
+                b=b[eq0:eq0 + neq] / sqrt_w if neq else None,
+                C=C[in0:in0 + nin] / sqrt_w if nin else None,
+                lower=lo[in0:in0 + nin] / sqrt_w if nin else None,
+                upper=up[in0:in0 + nin] / sqrt_w if nin else None)
+            task = self.stack.task(name)
+            spans.append(TaskSpan(name, level, built, slice(eq0, eq0 + neq),
+                                  slice(in0, in0 + nin), task.weight))
+        spans.sort(key=lambda s: s.built_level)
+        solution = Solution(np.array(core.x), tuple(reports), backend="native",
+                            algorithm="basis", qp_count=core.qp_count)
+        return BuiltStack(levels, tuple(index), tuple(spans), rows, n), solution
+
+
+def _parameters(task: Any) -> tuple[Any, ...]:
+    """Return what a kernel copies of a task when built (a change means a new mirror)."""
+    out: tuple[Any, ...] = (id(task), task.weight)
+    if isinstance(task, Contact):
+        out += (task.mu, task.f_min, task.max_normal_force, task.kp, task.kd)
+    reference = getattr(task, "reference", None)
+    if reference is not None and hasattr(reference, "kp"):
+        out += _gains(task)
+    return out
+
+
+class NativeEngine:
+    """The native step of a controller, as the controller runs it (see the module docstring).
+
+    Args:
+        robot: The bundled robot of the controller's model.
+        rank_tol: The solver's rank tolerance.
+
+    """
+
+    def __init__(self, robot: Robot, rank_tol: float = 1e-9) -> None:
+        self.robot = robot
+        self.rank_tol = float(rank_tol)
+        self.mirror: NativeStepMirror | None = None
+        self.unsupported: str | None = None
+        self._signature: tuple[Any, ...] | None = None
+        self.steps = 0
+
+    def signature(self, stack: Stack) -> tuple[Any, ...]:
+        """Return the stack's structure and the parameters its kernels copy."""
+        return tuple((stack.level_of_task(t.name), _parameters(t)) for t in stack.tasks)
+
+    def ready(self, controller: Any, t: float) -> NativeStepMirror | None:
+        """Return the mirror to run this step, or ``None`` when the Python step must run it."""
+        stack = controller.stack
+        if not stack.steady(t) or controller.final_metric is not None \
+                or controller.final_target is not None:
+            return None
+        signature = self.signature(stack)
+        if signature != self._signature:
+            self._signature = signature
+            self.mirror, self.unsupported = None, None
+            try:
+                self.mirror = NativeStepMirror(self.robot, controller, self.rank_tol)
+            except NotSupported as exc:
+                self.unsupported = str(exc)
+        mirror = self.mirror
+        if mirror is None or mirror._layout is not controller.layout:
+            return None
+        return mirror if mirror.sync_contacts() else None

@@ -366,9 +366,10 @@ def standing_controller(
     robot: Robot,
     *,
     dt: float = 0.001,
-    backend: str = "proxsuite",
+    backend: str | None = None,
     algorithm: str = "basis",
     diagnostics: str = "full",
+    native: bool | None = None,
     **gains: float,
 ) -> WholeBodyController:
     """Build a :class:`~hqp.control.servo.WholeBodyController` standing on both feet.
@@ -378,23 +379,25 @@ def standing_controller(
     Args:
         robot: The bundled robot (``hqp.robots.load(name)``).
         dt: Control period [s].
-        backend: QP backend.
+        backend: QP backend (``None``: the native step, see ``WholeBodyController``).
         algorithm: ``"basis"`` or ``"cascade"``.
         diagnostics: ``"full"`` or ``"residuals"`` (see ``WholeBodyController``).
+        native: Steady steps on the native step (see ``WholeBodyController``; ``None``: where
+            it applies).
         **gains: Keyword arguments of :func:`standing_stack`.
 
     """
     model = robot.model()
     stack, contacts = standing_stack(robot, model, **gains)
     return WholeBodyController(model, contacts, stack, dt=dt, backend=backend,
-                               algorithm=algorithm, diagnostics=diagnostics)
+                               algorithm=algorithm, diagnostics=diagnostics, native=native)
 
 
 def standing_nullspace_controller(
     robot: Robot,
     *,
     dt: float = 0.001,
-    backend: str = "proxsuite",
+    backend: str | None = None,
     algorithm: str = "basis",
     diagnostics: str = "full",
     joint_limit_zones: bool = True,

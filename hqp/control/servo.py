@@ -27,6 +27,7 @@ import numpy as np
 
 from hqp.control.command import Command, FeasibilityReport
 from hqp.control.diagnostics import MODES, Diagnostics
+from hqp.control.native import NativeEngine, NativeStepMirror
 from hqp.control.resolver import HQPResolver, Resolver
 from hqp.errors import InvalidInput
 from hqp.model.layout import Layout
@@ -150,8 +151,10 @@ class WholeBodyController(Controller):
         stack: The levels of tasks (default: an empty :class:`~hqp.stack.Stack` with the
             default levels).
         dt: Control period [s].
-        backend: QP backend of the solver (``"proxsuite"``, ``"osqp"``, ``"daqp"``,
-            ``"quadprog"``).
+        backend: QP backend of the Python step's solver (``"proxsuite"``, ``"osqp"``,
+            ``"daqp"``, ``"quadprog"``, ``"native"``); ``None``: the native step where it
+            applies (``native``) and the native solver for the other steps, or
+            ``"proxsuite"`` without the native step.
         algorithm: Hierarchical algorithm (``"basis"`` or ``"cascade"``).
         final_metric: Metric ``(n, n)`` of the final tie-break (``None``: identity, i.e. the
             minimum-norm optimum).
@@ -165,6 +168,13 @@ class WholeBodyController(Controller):
         damping: Joint damping of the safe command [N m s/rad].
         resolver: What solves the built levels (default: an :class:`HQPResolver` of
             ``backend``, ``algorithm``, ``final_metric``, ``final_target``).
+        native: Run steady steps on the native step (``hqp.control.native``: one call into
+            the C++ core for the model pass, the rows, the solve and the torques; the
+            Python step runs the steps it does not: ramps, contact unloading, blends,
+            tasks without a kernel, a final metric). ``None`` (default): when the model
+            comes from a bundled robot, the resolver is the default HQP one with the basis
+            algorithm and ``backend`` is ``None`` or ``"native"``; an explicit other backend
+            means the Python step on that backend.
 
     Raises:
         InvalidInput: Bad period, tolerance or diagnostics mode; a contact frame not in the
@@ -179,7 +189,7 @@ class WholeBodyController(Controller):
         contacts: Sequence[Task] = (),
         stack: Stack | None = None,
         dt: float = 0.001,
-        backend: str = "proxsuite",
+        backend: str | None = None,
         algorithm: str = "basis",
         *,
         final_metric: np.ndarray | None = None,
@@ -189,6 +199,7 @@ class WholeBodyController(Controller):
         diagnostics: str = "full",
         damping: float = 2.0,
         resolver: Resolver | None = None,
+        native: bool | None = None,
     ) -> None:
         if not np.isfinite(dt) or dt <= 0.0:
             raise InvalidInput(f"WholeBodyController: dt must be positive, got {dt}")
@@ -210,6 +221,16 @@ class WholeBodyController(Controller):
             robot_model.frame_id(frame, f"WholeBodyController: contact {name!r}")
         self.layout = Layout.build(robot_model.nv, self.stack.layout_contacts())
         self.dt = float(dt)
+        if native is None:
+            native = (resolver is None and algorithm == "basis"
+                      and backend in (None, "native") and robot_model.source is not None)
+        if native and robot_model.source is None:
+            raise InvalidInput("WholeBodyController: native=True needs a model built by "
+                               "Robot.model() (the native step loads the robot's URDF)")
+        self.native: NativeEngine | None = (
+            NativeEngine(robot_model.source) if native else None)
+        if backend is None:  # the steps the native step leaves run on the same solver
+            backend = "native" if native else "proxsuite"
         self.resolver: Resolver = resolver if resolver is not None else HQPResolver(
             backend, algorithm, final_metric=final_metric, final_target=final_target)
         self.feasibility = Diagnostics(tolerance, singular_tolerance, diagnostics)
@@ -218,7 +239,8 @@ class WholeBodyController(Controller):
         self.last_t = 0.0
         self.last_x: np.ndarray | None = None
         self.last_tau: np.ndarray | None = None
-        self.last_built: BuiltStack | None = None
+        self._last_built: BuiltStack | None = None
+        self._native_levels: NativeStepMirror | None = None  # last step native: built on demand
         self._blend_start: float | None = None
         self._blend_delta: np.ndarray | None = None
         self._blend_notes: tuple[str, ...] = ()
@@ -273,6 +295,17 @@ class WholeBodyController(Controller):
         self.resolver.final_target = value  # type: ignore[attr-defined]
 
     @property
+    def last_built(self) -> BuiltStack | None:
+        """The levels of the last step (``None`` before the first).
+
+        A native step's levels are copied out of the core when first asked for.
+        """
+        if self._native_levels is not None:
+            self._last_built = self._native_levels.built()[0]
+            self._native_levels = None
+        return self._last_built
+
+    @property
     def last_solution(self) -> Solution | None:
         """The solver's solution of the last step (``None``: safe mode, or not an HQP)."""
         return getattr(self.resolver, "last_solution", None)
@@ -318,8 +351,13 @@ class WholeBodyController(Controller):
         """
         clock = time.perf_counter
         t0 = clock()
-        self.model.update(self._checked_q(state.q, t), state.v)
+        q = self._checked_q(state.q, t)
+        self.model.update(q, state.v)
         t1 = clock()
+        if self.native is not None and self._blend_start is None:
+            command = self._native_step(q, state.v, t, t0, t1)
+            if command is not None:
+                return command
         x_prev = self.last_x
         declared = self.stack.layout_contacts()
         if [(c.name, c.frame, c.kind) for c in self.layout.contacts] != declared:
@@ -359,10 +397,56 @@ class WholeBodyController(Controller):
         t5 = clock()
         self.last_t = float(t)
         self.last_tau = tau
-        self.last_built = built
+        self._last_built = built
+        self._native_levels = None
         timings = {"update": t1 - t0, "rows": t2 - t1, "solve": t3 - t2, "torques": t4 - t3,
                    "report": t5 - t4, "total": t5 - t0}
         return Command(tau=tau, qdd=qdd, wrenches=wrenches, report=report, safe_mode=safe,
+                       timings=timings, t=float(t))
+
+    def _native_step(self, q: np.ndarray, v: np.ndarray, t: float, t0: float,
+                     t1: float) -> Command | None:
+        """Run a steady step on the native step (``None``: the Python step runs this one).
+
+        The model pass, the rows, the solve and the torques run in one call (GIL released);
+        the report's statuses come from :class:`Diagnostics` on the native levels. A failed
+        native solve leaves the step to the Python path (its fallback backends, then the
+        safe command).
+        """
+        assert self.native is not None
+        declared = self.stack.layout_contacts()
+        if [(c.name, c.frame, c.kind) for c in self.layout.contacts] != declared:
+            return None
+        mirror = self.native.ready(self, t)
+        if mirror is None:
+            return None
+        # steady: advance changes nothing but tells contact-aware tasks the active contacts
+        self.stack.advance(self.model, self.layout, self.dt, t, self.last_x)
+        clock = time.perf_counter
+        try:
+            x, tau = mirror.step(q, v, t)
+        except RuntimeError:
+            return None
+        t3 = clock()
+        self.native.steps += 1
+        notes: list[str] = []
+        tau = self._clip(tau, notes)
+        qdd = x[: self.layout.nv].copy()
+        wrenches = {c.name: x[c.slice].copy() for c in self.layout.contacts}
+        t4 = clock()
+        statuses, costs, built = mirror.report(self.feasibility)
+        report = FeasibilityReport(tasks=statuses, notes=tuple(notes), level_costs=costs)
+        t5 = clock()
+        self.last_x = x
+        self.last_t = float(t)
+        self.last_tau = tau
+        self._last_built = built
+        self._native_levels = mirror if built is None else None
+        if isinstance(self.resolver, HQPResolver):
+            self.resolver.last_solution = None  # the native step's levels are its own
+        timings = {"update": t1 - t0, "rows": 0.0, "solve": t3 - t1, "torques": t4 - t3,
+                   "report": t5 - t4, "total": t5 - t0}
+        return Command(tau=tau, qdd=qdd, wrenches=wrenches, report=report, safe_mode=False,
                        timings=timings, t=float(t))
 
     def _clip(self, tau: np.ndarray, notes: list[str]) -> np.ndarray:

@@ -85,6 +85,9 @@ class RobotModel:
         self.model = model
         self.data = model.createData()
         self.name = name
+        self.source: Any = None
+        """The bundled robot this model was built from (``Robot.model()`` sets it; ``None``
+        for a model built otherwise): the native step builds its own model from it."""
         self.floating_base = floating_base
         self.nq = model.nq
         self.nv = model.nv

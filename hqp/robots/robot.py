@@ -133,7 +133,7 @@ class Robot:
 
     def model(self) -> RobotModel:
         """Build a fresh :class:`~hqp.model.RobotModel` (floating base, the robot's limits)."""
-        return RobotModel(
+        model = RobotModel(
             self.pinocchio_model(),
             name=self.name,
             floating_base=True,
@@ -141,6 +141,8 @@ class Robot:
             velocity_limits=self.velocity_limits,
             torque_limits=self.torque_limits,
         )
+        model.source = self
+        return model
 
     def mujoco_model(self) -> mujoco.MjModel:
         """Load a fresh ``mujoco.MjModel`` from :attr:`mjcf_path`."""

@@ -78,6 +78,10 @@ inline void bind_step(nb::module_& m) {
           [](NativeStep& s, int handle, const Eigen::Matrix3d& R, const Eigen::Vector3d& w,
              const Eigen::Vector3d& a) { s.orientation(handle).set_goal(R, w, a); },
           nb::arg("handle"), nb::arg("rotation"), nb::arg("velocity"), nb::arg("acceleration"))
+      .def(
+          "contact", [](NativeStep& s, int handle) -> ContactKernel& { return s.contact(handle); },
+          nb::rv_policy::reference_internal, nb::arg("handle"),
+          "The contact kernel of a handle (activate/deactivate it between steps).")
       .def("set_braking", &NativeStep::set_braking, nb::arg("handle"), nb::arg("braking"))
       .def(
           "step",
@@ -99,6 +103,41 @@ inline void bind_step(nb::module_& m) {
       .def_prop_ro("x", [](const NativeStep& s) { return Eigen::VectorXd(s.x()); })
       .def_prop_ro("tau", [](const NativeStep& s) { return Eigen::VectorXd(s.tau()); })
       .def_prop_ro("qp_count", [](const NativeStep& s) { return s.hierarchy().qp_count(); })
+      .def_prop_ro("residuals", [](const NativeStep& s) { return Eigen::VectorXd(s.residuals()); },
+                   "Unweighted residual norm of each kernel's rows at the last x (handle order).")
+      .def_prop_ro("entry_count", &NativeStep::entry_count)
+      .def(
+          "entry",
+          [](const NativeStep& s, int handle) {
+            const NativeStep::EntryInfo e = s.entry(handle);
+            return nb::make_tuple(e.kind, e.level, e.built_level, e.eq0, e.neq, e.in0, e.nin,
+                                  e.sqrt_w);
+          },
+          nb::arg("handle"),
+          "(kind, stack level, built level, eq start, eq rows, ineq start, ineq rows, sqrt w).")
+      .def(
+          "diagnose", [](NativeStep& s) { return Eigen::VectorXd(s.diagnose()); },
+          "The full diagnostics' projected sigma_min of each kernel (handle order; NaN: no "
+          "equality rows).")
+      .def(
+          "level_summary",
+          [](const NativeStep& s) {
+            Eigen::VectorXd cost(s.level_count()), sigma(s.level_count());
+            for (int k = 0; k < s.level_count(); ++k) {
+              cost[k] = s.result(k).cost;
+              sigma[k] = s.result(k).sigma_min;
+            }
+            return nb::make_tuple(cost, sigma);
+          },
+          "(cost, sigma_min) of each built level of the last step.")
+      .def(
+          "result",
+          [](const NativeStep& s, int k) {
+            if (k < 0 || k >= s.level_count()) throw std::invalid_argument("no such level");
+            const LevelResult& r = s.result(k);
+            return nb::make_tuple(r.cost, r.sigma_min, Eigen::VectorXi(r.state.cast<int>()));
+          },
+          nb::arg("k"), "The solver's report of built level k: (cost, sigma_min, row states).")
       .def(
           "levels",
           [](const NativeStep& s) {

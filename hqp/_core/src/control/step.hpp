@@ -14,6 +14,7 @@
 
 #include "model/robot.hpp"
 #include "solver/hierarchy.hpp"
+#include "solver/linalg.hpp"
 #include "tasks/joint_limits.hpp"
 #include "tasks/orientation.hpp"
 #include "tasks/physics.hpp"
@@ -60,6 +61,26 @@ class NativeStep {
   const Eigen::VectorXd& x() const { return hierarchy_.x(); }
   const Eigen::VectorXd& tau() const { return tau_; }
 
+  /// What the feasibility report needs of one kernel: where its rows sit in the built levels.
+  struct EntryInfo {
+    int kind, level, built_level;
+    Index eq0, neq, in0, nin;
+    double sqrt_w;
+  };
+  int entry_count() const { return int(entries_.size()); }
+  EntryInfo entry(int handle) const;
+  /// Unweighted residual norm of each kernel's rows at the last step's x (equality residual
+  /// and inequality violation stacked), in handle order; filled by step() without allocating.
+  const Eigen::VectorXd& residuals() const { return residual_; }
+  /// The full diagnostics' sigma_min of each kernel (handle order; NaN for a kernel without
+  /// equality rows), as hqp.control.diagnostics.Diagnostics.hqp_statuses computes it: the
+  /// m-th singular value of its m unweighted rows (equalities and active inequalities) times
+  /// an orthonormal basis of what the levels above leave free (the null space of their
+  /// equality and active inequality rows). Sizes vary with the active sets: this allocates.
+  const Eigen::VectorXd& diagnose();
+  /// The solver's report of built level k (cost, sigma_min, per-row states).
+  const LevelResult& result(int k) const { return hierarchy_.results()[std::size_t(k)]; }
+
  private:
   struct Entry {
     Kind kind;
@@ -92,6 +113,11 @@ class NativeStep {
   Eigen::MatrixXd G_;
   RobotCore::Matrix6Xd J6_;
   Eigen::VectorXd tau_;
+  Eigen::VectorXd residual_;
+  Eigen::VectorXd sigma_;
+  Eigen::MatrixXd Zd_, Zn_, Md_, Pd_;
+  PivotedQR null_qr_;
+  SingularValues sv_;
 };
 
 }  // namespace hqp
