@@ -141,7 +141,9 @@ def test_controller_suite_row_of_the_native_core_is_the_native_step():
     robot = robots.load("g1")
     sts = sc.states("g1", count=2)
     stepper = sc._Stepper(sc.NATIVE_STEP, robot, sts)
-    x, tau = stepper()
-    assert stepper.mirror is not None and np.isfinite(tau).all()
+    cmd = stepper()
+    stepper()
+    assert stepper.ctrl.native is not None and stepper.ctrl.native.steps >= 1
+    assert np.isfinite(cmd.tau).all() and cmd.report.tasks
     n, levels, rows = sc._shape({sc.NATIVE_STEP: stepper})
-    assert n == x.size and levels >= 5 and rows > n
+    assert n == stepper.ctrl.last_x.size and levels >= 5 and rows > n

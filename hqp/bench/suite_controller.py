@@ -6,9 +6,9 @@ Per robot (``paper-humanoid``, ``g1``, ``talos``), the same states are handed to
   :func:`hqp.control.presets.standing_controller` (both soles in
   contact, centre of mass, trunk upright, posture, torque, friction, centre-of-pressure and
   viable joint limits; ``diagnostics="residuals"``: per-task residual flags, no per-task SVDs);
-- ``hqp/basis/native``: the native control step (:class:`hqp.control.native.NativeStepMirror`:
-  the same standing stack in one call into the C++ core: model pass, rows, strict hierarchy,
-  torques; no feasibility report yet);
+- ``hqp/basis/native``: the same standing controller on the native step (the default of a
+  bundled robot's controller, :class:`hqp.control.native.NativeEngine`: model pass, rows,
+  strict hierarchy and torques in one call into the C++ core, the report from its levels);
 - ``nullspace``: :func:`hqp.control.presets.standing_nullspace_controller` (same stack, joint limits
   as the papers' activation zones; inequalities not enforced);
 - ``placo``: PlaCo's ``DynamicsSolver`` on the same task set (:mod:`hqp.bench.placo_step`);
@@ -47,7 +47,6 @@ from hqp.bench.interleave import Samples, interleaved
 from hqp.bench.placo_step import PlacoStanding
 from hqp.bench.recorded import DATA_DIR, load
 from hqp.bench.tsid_step import TsidStanding, TsidUnavailable
-from hqp.control.native import NativeStepMirror
 from hqp.control.presets import standing_controller, standing_nullspace_controller
 from hqp.model import RobotState
 from hqp.robots import load as load_robot
@@ -56,7 +55,7 @@ from hqp.solver import ALGORITHMS, available_backends, supports
 ROBOTS = ("paper-humanoid", "g1", "talos")
 
 NATIVE_STEP = "hqp/basis/native"
-"""The native core's whole step (the contract's row name): the stack mirrored into C++."""
+"""The native core's whole step (the contract's row name): the controller on the native step."""
 """Robots of the suite."""
 
 T0 = 1.0
@@ -109,7 +108,6 @@ class _Stepper:
         self.phases: list[dict[str, float]] = []
         self.levels: list[list[float]] = []
         self.record = False
-        self.mirror: NativeStepMirror | None = None
         self.tsid: TsidStanding | None = None
         if name == TSID:
             self.tsid = TsidStanding(robot, dt)
@@ -118,14 +116,9 @@ class _Stepper:
             self.placo = PlacoStanding(robot, dt)
             self.ctrl = None
         elif name == NATIVE_STEP:
-            # the Python controller sets the goals and references once; then the native step
-            ctrl = standing_controller(robot, dt=dt, backend="native", diagnostics="residuals",
-                                       native=False)
-            q, v = sts[0]
-            ctrl.step(RobotState(q, v, T0), T0)
-            self.mirror = NativeStepMirror(robot, ctrl)
-            self.setup = ctrl  # its built stack gives the row's shape
-            self.ctrl = None
+            self.ctrl = standing_controller(robot, dt=dt, diagnostics="residuals")
+            if self.ctrl.native is None:
+                raise RuntimeError("the standing controller has no native step")
         elif name == "nullspace":
             self.ctrl = standing_nullspace_controller(robot, dt=dt, diagnostics="residuals")
         else:
@@ -137,8 +130,6 @@ class _Stepper:
         q, v = self.states[self.i % len(self.states)]
         t = T0 + self.i * self.dt
         self.i += 1
-        if self.mirror is not None:
-            return self.mirror.step(q, v, t)
         if self.tsid is not None:
             return self.tsid.step(q, v)
         if self.ctrl is None:
@@ -165,9 +156,6 @@ def _accuracy(steppers: dict[str, _Stepper], sts: list[tuple[np.ndarray, np.ndar
     for q, v in sts:
         xs = {}
         for name, st in steppers.items():
-            if st.mirror is not None:
-                xs[name] = st.mirror.step(q, v, t)[0]
-                continue
             if st.ctrl is None:
                 continue
             st.ctrl.step(RobotState(q, v, t), t)
@@ -215,7 +203,7 @@ def _shape(steppers: dict[str, _Stepper]) -> tuple[int | None, int | None, int |
     ref_st = next((st for n, st in steppers.items() if n.startswith("hqp/")), None)
     if ref_st is None:
         return None, None, None
-    ctrl = ref_st.ctrl if ref_st.mirror is None else ref_st.setup
+    ctrl = ref_st.ctrl
     levels = ctrl.last_built.levels  # type: ignore[union-attr]
     n_rows = sum(0 if lv.A is None else np.shape(lv.A)[0] for lv in levels)
     n_rows += sum(0 if lv.C is None else np.shape(lv.C)[0] for lv in levels)
