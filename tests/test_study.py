@@ -13,7 +13,7 @@ from hqp.study import RecordFile, load_study, make_plan, read_records, study_fro
 from hqp.study.grid import GridPlan
 from hqp.study.plot import plot_grid, plot_push_map
 from hqp.study.pushmap import Bisection, PushMapPlan
-from hqp.study.simulation import check_params, rerun_command
+from hqp.study.simulation import check_params, rerun_command, run_simulation
 from hqp.study.spec import directions, simulation_id
 
 
@@ -205,3 +205,12 @@ def test_plots(tmp_path) -> None:
     assert plot_grid(grid, tmp_path / "grid.png").stat().st_size > 5_000
     with pytest.raises(InvalidInput, match="fell"):
         plot_grid(grid, tmp_path / "x.png", metric="speed")
+
+
+def test_errors_and_timeouts_are_records() -> None:
+    bad = run_simulation({"target": "standing", "push_force": -1.0})
+    assert bad["status"] == "error" and "push_force" in bad["error"] and bad["metrics"] == {}
+    assert bad["command"] == rerun_command({"target": "standing", "push_force": -1.0})
+    slow = run_simulation({"controller": "nullspace", "duration": 5.0}, timeout=1e-3)
+    assert slow["status"] == "timeout" and "timeout of 0.001 s" in slow["error"]
+    assert slow["timing"]["wall_s"] < 60.0  # stopped at its first check, not after 5 s of physics

@@ -181,9 +181,9 @@ def command(args: argparse.Namespace) -> int:
         problem = None if target is None else output_path_problem(target)
         if problem:
             raise InvalidInput(f"hqp sweep: cannot write {target}: {problem}")
-    records = RecordFile(path, resume=args.resume, overwrite=args.overwrite)
     if args.workers is not None and args.workers < 1:
         raise InvalidInput(f"hqp sweep: --workers must be at least 1, got {args.workers}")
+    records = RecordFile(path, resume=args.resume, overwrite=args.overwrite)
     with stdout_to_stderr() as out:
         ray = connect(args.address, args.workers)
         bar = tqdm(desc=study.name, unit="sim", file=sys.stderr, disable=None,
