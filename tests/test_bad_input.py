@@ -374,3 +374,14 @@ def test_hqp_run_reach_plots_the_hand_task(tmp_path, monkeypatch):
     run_behavior("reach", duration=0.6, plot=tmp_path / "reach.png")
     errors = next(p for p in drawn["panels"] if p.title.startswith("Task errors"))
     assert {"hand", "balance", "posture"} <= {line.label for line in errors.lines}
+
+
+@pytest.mark.slow
+def test_hqp_compare_fits_100_columns_unless_wide(capsys):
+    argv = ["compare", "hand-reach", "--duration", "0.01", "--controllers", "hqp"]
+    assert main(argv) == 0
+    narrow = capsys.readouterr().out.splitlines()
+    assert max(len(line) for line in narrow) <= 100 and "--wide" in "\n".join(narrow)
+    assert main([*argv, "--wide"]) == 0
+    wide = capsys.readouterr().out.splitlines()
+    assert max(len(line) for line in wide) > 100 and "x max [mm]" in wide[1]

@@ -43,6 +43,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--all", action="store_true", help="run every scenario")
     parser.add_argument("--json", action="store_true", help="print JSON alone on stdout")
+    parser.add_argument("--wide", action="store_true",
+                        help="print every column (default: the table fits 100 columns)")
     parser.add_argument("--plot", metavar="DIR", help="write one PNG figure per run into DIR")
     parser.add_argument(
         "--controllers", nargs="+", metavar="C",
@@ -113,7 +115,7 @@ def _run(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
             for path in write_plots(result, args.plot):
                 progress(f"[{result.scenario}] wrote {path}")
         if not args.json:
-            print(format_table(result), file=out, flush=True)
+            print(format_table(result, wide=args.wide), file=out, flush=True)
             print(file=out)
     if args.json:
         if args.all:
