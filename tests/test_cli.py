@@ -1,8 +1,8 @@
 """The ``hqp`` command line: the contracts' JSON of compare, run and bench end to end, errors.
 
-The keys checked are those of docs/architecture.md and ../shared/ARCHITECTURE.md, "Contract:
-the command line"; each command runs in its own process, as the checks outside the
-repository call it, with the shortest durations and sizes it accepts.
+The keys checked are those of docs/architecture.md, "Contract: the command line"; each
+command runs in its own process, as the checks outside the repository call it, with the
+shortest durations and sizes it accepts.
 """
 
 from __future__ import annotations

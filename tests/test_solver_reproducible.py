@@ -1,5 +1,5 @@
-"""Bit-reproducible solves across processes (../shared/ARCHITECTURE.md: simulation metrics
-are identical on repeated runs).
+"""Bit-reproducible solves across processes (docs/architecture.md: simulation metrics are
+identical on repeated runs).
 
 The wheel's AVX builds of proxsuite sum in an order that follows the heap addresses of
 ProxQP's own workspace, so ``x`` changed in its last bits from one process to the next
