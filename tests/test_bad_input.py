@@ -385,3 +385,15 @@ def test_hqp_compare_fits_100_columns_unless_wide(capsys):
     assert main([*argv, "--wide"]) == 0
     wide = capsys.readouterr().out.splitlines()
     assert max(len(line) for line in wide) > 100 and "x max [mm]" in wide[1]
+
+
+def test_the_recorder_refuses_an_unknown_robot_and_an_unwritable_folder(tmp_path, capsys):
+    from hqp.app import record
+
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    for argv, expected in ((["--robot", "nope"], "unknown robot 'nope'"),
+                           (["--out", str(blocker / "data")], "is not a folder")):
+        assert record.main(argv) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and expected in err[0]

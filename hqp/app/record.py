@@ -18,6 +18,7 @@ from typing import Any
 import comparisons
 from comparisons.base import RunSpec
 from comparisons.common import make_controller
+from hqp.app.console import output_path_problem
 from hqp.bench.record import BACKEND, SOURCES, Runner, Source, record_source, run_behavior_source
 from hqp.bench.recorded import DATA_DIR
 from hqp.sim.loop import Push
@@ -53,6 +54,14 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, default=DATA_DIR, help="output directory")
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.WARNING)
+    robots = sorted({r for s in SOURCES for r in s.robots})
+    unknown = sorted(set(args.robot or ()) - set(robots))
+    why = output_path_problem(args.out / "probe.npz")
+    if unknown or why:  # before any run
+        message = (f"unknown robot {unknown[0]!r}; robots of the sources: {', '.join(robots)}"
+                   if unknown else f"--out {str(args.out)!r}: {why}")
+        print(f"python -m hqp.app.record: error: {message}", file=sys.stderr)
+        return 2
     for source in SOURCES:
         if args.source and source.name not in args.source:
             continue
