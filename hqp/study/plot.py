@@ -116,9 +116,9 @@ def plot_grid(summary: dict[str, Any], path: str | Path, metric: str = "fell",
     ys = list(dict.fromkeys(r[y_name] for r in rows)) if y_name else [None]
     controllers = list(dict.fromkeys(r["controller"] for r in rows))
     plt = _pyplot()
-    fig, axes = plt.subplots(1, len(controllers), squeeze=False,
-                             figsize=(1.2 + 0.9 * max(len(xs), 3) * len(controllers),
-                                      1.6 + 0.6 * max(len(ys), 2)))
+    fig, axes = plt.subplots(1, len(controllers), squeeze=False, layout="constrained",
+                             figsize=(1.5 + (1.2 + 0.8 * max(len(xs), 3)) * len(controllers),
+                                      2.4 + 0.6 * max(len(ys), 2)))
     values = [_number(r.get(metric)) for r in rows]
     finite = [v for v in values if math.isfinite(v)]
     vmin, vmax = (min(finite), max(finite)) if finite else (0.0, 1.0)
