@@ -1,0 +1,211 @@
+"""Measure ``hqp view`` in a headless Chromium: page frame rate and the loop's real-time factor.
+
+``python -m hqp.app.view.measure --robot g1 --seconds 20 --screenshot docs/figures/view.png``
+starts ``hqp view reach --no-browser`` on a free port, opens its page in Debian's
+``chromium`` through Playwright (software WebGL where there is no GPU), moves the hand goal
+continuously through the page's own goal field (a circle of 8 cm radius, 5 updates per
+second) and reports, as one JSON object on stdout: the page's frames per second (browser
+``requestAnimationFrame`` callbacks), the scene updates the server sent per second and the
+loop's real-time factor (both as the page shows them), and where it wrote the screenshot.
+The browser helpers are shared with ``tests/test_view.py``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import re
+import shutil
+import signal
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+try:  # test extra only: `pip install playwright`, and a chromium from the system
+    from playwright.sync_api import sync_playwright
+except ImportError:  # pragma: no cover - depends on the environment
+    sync_playwright = None
+
+CHROMIUM_CANDIDATES = ("chromium", "chromium-browser", "google-chrome")
+CHROMIUM_ARGS = ("--use-angle=swiftshader", "--enable-unsafe-swiftshader", "--no-sandbox")
+"""Software WebGL (no GPU needed); no sandbox (CI containers run as root)."""
+FPS_SCRIPT = """(ms) => new Promise(done => {
+    let n = 0; const t0 = performance.now();
+    function frame() { n++; if (performance.now() - t0 < ms) requestAnimationFrame(frame);
+                       else done(1000 * n / (performance.now() - t0)); }
+    requestAnimationFrame(frame); })"""
+"""Frames the browser draws per second over ``ms`` milliseconds."""
+
+
+def chromium() -> str | None:
+    """Return the path of a system Chromium, or ``None``."""
+    for name in CHROMIUM_CANDIDATES:
+        path = shutil.which(name)
+        if path:
+            return path
+    return None
+
+
+def free_port() -> int:
+    """Return a free TCP port on localhost."""
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def start_view(port: int, record: Path | None, behavior: str = "stand",
+               robot: str | None = None, timeout: float = 180.0) -> subprocess.Popen:
+    """Start ``hqp view BEHAVIOR --no-browser`` as a process; return once it serves."""
+    env = dict(os.environ, OMP_NUM_THREADS="1", PYTHONUNBUFFERED="1")
+    cmd = [sys.executable, "-m", "hqp.app.cli", "view", behavior, "--no-browser",
+           "--port", str(port)]
+    if record is not None:
+        cmd += ["--record", str(record)]
+    if robot is not None:
+        cmd += ["--robot", robot]
+    proc = subprocess.Popen(cmd, stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True,
+                            env=env)
+    assert proc.stderr is not None
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        line = proc.stderr.readline()
+        if "Ctrl-C stops" in line:
+            return proc
+        if not line and proc.poll() is not None:
+            break
+    proc.kill()
+    raise RuntimeError(f"hqp view did not start: {' '.join(cmd)}")
+
+
+def stop_view(proc: subprocess.Popen, timeout: float = 60.0) -> int:
+    """Ctrl-C the viewer; return its exit status (killed, and raises, past ``timeout``)."""
+    proc.send_signal(signal.SIGINT)
+    try:
+        return proc.wait(timeout)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        raise
+
+
+def launch(p: Any, executable: str) -> Any:
+    """Launch a headless Chromium with software WebGL."""
+    return p.chromium.launch(executable_path=executable, headless=True, args=list(CHROMIUM_ARGS))
+
+
+def vector_inputs(page: Any, label: str) -> list[Any]:
+    """Return the three number fields of a viser vector control, by its label."""
+    page.evaluate("""(label) => {
+        const l = [...document.querySelectorAll('label')].find(e => e.textContent === label);
+        let row = l;
+        while (row && row.querySelectorAll('input').length < 3) row = row.parentElement;
+        row.querySelectorAll('input').forEach((e, i) => e.setAttribute('data-hqp', label + i));
+    }""", label)
+    return [page.locator(f"[data-hqp='{label}{i}']") for i in range(3)]
+
+
+def set_vector(fields: list[Any], values: Any) -> None:
+    """Type a vector into a viser vector control (each number, then Enter)."""
+    for f, v in zip(fields, values):
+        f.fill(f"{v:.3f}")
+        f.press("Enter")
+
+
+def page_number(page: Any, pattern: str) -> float:
+    """Return the first number captured by ``pattern`` in the page's text."""
+    match = re.search(pattern, page.inner_text("body"))
+    if match is None:
+        raise RuntimeError(f"not in the page: {pattern!r}")
+    return float(match.group(1))
+
+
+def hand_distance(page: Any) -> float:
+    """Return the hand's distance to its goal as the page's Goals panel shows it [m]."""
+    return page_number(page, r"hand: ([0-9.]+) m from hand_goal")
+
+
+def open_reach(page: Any, url: str, timeout_ms: float = 180000) -> list[Any]:
+    """Open the page, click ``reach``, wait for its reach phase; return its goal fields."""
+    page.goto(url)
+    page.get_by_role("button", name="reach").click(timeout=timeout_ms)
+    page.get_by_text(re.compile(r"reach · phase reach")).wait_for(timeout=timeout_ms)
+    page.get_by_text(re.compile(r"hand: [0-9.]+ m from hand_goal")).wait_for(timeout=timeout_ms)
+    return vector_inputs(page, "hand_goal (hand)")
+
+
+def measure(robot: str | None, seconds: float, screenshot: Path | None,
+            width: int = 1280, height: int = 800) -> dict[str, Any]:
+    """Drag the hand goal for ``seconds`` and measure (see the module docstring)."""
+    if sync_playwright is None:
+        raise RuntimeError("needs Playwright (pip install playwright)")
+    exe = chromium()
+    if exe is None:
+        raise RuntimeError("needs a system chromium (apt-get install chromium)")
+    port = free_port()
+    with tempfile.TemporaryDirectory() as tmp:
+        proc = start_view(port, Path(tmp), behavior="stand", robot=robot)
+        try:
+            with sync_playwright() as p:
+                browser = launch(p, exe)
+                page = browser.new_page(viewport={"width": width, "height": height})
+                fields = open_reach(page, f"http://127.0.0.1:{port}")
+                center = [float(f.input_value()) for f in fields]
+                fps, rtf, ups = [], [], []
+                t0 = time.monotonic()
+                k = 0
+                while time.monotonic() - t0 < seconds:
+                    a = 2 * math.pi * k / 25  # a circle in 5 s at 5 updates/s
+                    set_vector(fields[1:], [center[1] + 0.08 * math.cos(a),
+                                            center[2] + 0.08 * math.sin(a)])
+                    fps.append(page.evaluate(FPS_SCRIPT, 200))
+                    k += 1
+                    if k % 5 == 0:
+                        rtf.append(page_number(page, r"real-time factor ([0-9.]+)"))
+                        ups.append(page_number(page, r"([0-9.]+) scene updates/s"))
+                elapsed = time.monotonic() - t0
+                if screenshot is not None:
+                    screenshot.parent.mkdir(parents=True, exist_ok=True)
+                    page.screenshot(path=str(screenshot))
+                distance = hand_distance(page)
+                browser.close()
+        finally:
+            rc = stop_view(proc)
+        record = json.loads((Path(tmp) / "run.json").read_text())
+    reach = record["runs"][-1]
+
+    def median(xs: list[float]) -> float | None:
+        return round(float(sorted(xs)[len(xs) // 2]), 3) if xs else None
+
+    return {"robot": record["viewer"]["robot"], "seconds": round(elapsed, 1),
+            "viewport": [width, height], "goal_updates": k,
+            "page_fps_median": median(fps), "page_fps_min": round(min(fps), 3),
+            "scene_updates_per_s_median": median(ups),
+            "realtime_factor_median": median(rtf),
+            "loop_realtime_factor": reach["realtime_factor"],
+            "step_time_median_ms": reach["step_time_median_ms"],
+            "hand_distance_at_end_m": distance, "fell": reach["fell"], "exit_status": rc,
+            "screenshot": None if screenshot is None else str(screenshot)}
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Command line of the measurement (see the module docstring)."""
+    parser = argparse.ArgumentParser(prog="python -m hqp.app.view.measure",
+                                     description=__doc__.split("\n\n")[0])
+    parser.add_argument("--robot", default=None, help="robot (default: the behaviors')")
+    parser.add_argument("--seconds", type=float, default=20.0, help="wall-clock seconds")
+    parser.add_argument("--screenshot", type=Path, default=None, help="PNG written at the end")
+    parser.add_argument("--width", type=int, default=1280)
+    parser.add_argument("--height", type=int, default=800)
+    args = parser.parse_args(argv)
+    result = measure(args.robot, args.seconds, args.screenshot, args.width, args.height)
+    print(json.dumps(result))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
