@@ -397,3 +397,21 @@ def test_the_recorder_refuses_an_unknown_robot_and_an_unwritable_folder(tmp_path
         assert record.main(argv) == 2
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and expected in err[0]
+
+
+def test_the_progress_bar_draws_on_a_terminal_and_stays_off_elsewhere(monkeypatch):
+    import io
+    import sys
+
+    from hqp.app.console import progress_bar
+
+    class Terminal(io.StringIO):
+        def isatty(self):
+            return True
+
+    for stream, drawn in ((Terminal(), True), (io.StringIO(), False)):
+        monkeypatch.setattr(sys, "stderr", stream)
+        with progress_bar("stand", "s", delay=0.0) as progress:
+            for k in range(11):
+                progress(0.3 * k, 3.0)
+        assert ("stand:" in stream.getvalue() and "/3.0 s" in stream.getvalue()) is drawn
