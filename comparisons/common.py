@@ -26,7 +26,7 @@ from hqp.control import presets
 from hqp.model import RobotModel, RobotState
 from hqp.robots import Robot, load
 from hqp.sim.run import Log, simulate
-from hqp.sim.simulator import CONTACT_MODES, Simulator
+from hqp.sim.simulator import CONTACT_MODES, Simulator, inside_polygon
 from hqp.stack import Stack
 from hqp.tasks.base import Category, Task
 from hqp.tasks.com import support_center
@@ -192,14 +192,48 @@ class Support:
             the foot site, world-aligned) [N, N m]
             (:meth:`hqp.sim.simulator.Simulator.foot_wrenches`).
         sole_cop: Centre of pressure of each foot in its sole frame ``(N, nfeet, 2)`` [m]
-            (``nan`` where the normal force is not positive).
+            (``nan`` where the normal force is at most 1 % of the weight).
         sole_half: Half length and half width of each sole ``(nfeet, 2)`` [m].
+        commanded_margin: Signed distance of the centre of pressure of the contact wrenches
+            the controller commanded (:attr:`hqp.controller.Command.wrenches`) inside the
+            convex hull of the soles ``(N,)`` [m] (negative: outside; ``nan`` where they pull
+            or carry nothing), ``None`` for a controller that reports no wrenches (PlaCo).
 
     """
 
     foot_wrench: np.ndarray
     sole_cop: np.ndarray
     sole_half: np.ndarray
+    commanded_margin: np.ndarray | None = None
+
+
+def commanded_margin(robot: Robot, corners: np.ndarray, wrenches: Any,
+                     weight: float) -> float | None:
+    """Signed distance of the commanded support's centre of pressure inside the soles' hull [m].
+
+    Args:
+        robot: The robot (its feet name the contacts).
+        corners: Sole corners of the feet in the world ``(nfeet, 4, 3)`` [m].
+        wrenches: The command's wrenches by contact name (world-aligned ``[f; tau]`` at the
+            sole centre).
+        weight: The robot's weight [N].
+
+    Returns:
+        ``None`` when the command has no wrench for a foot; ``nan`` when the total normal
+        force is at most 1 % of the weight (a pulling or vanishing support).
+
+    """
+    if not wrenches or any(np.size(wrenches.get(f, ())) != 6 for f in robot.feet):
+        return None
+    fz, moment = 0.0, np.zeros(2)
+    for foot, c in zip(robot.feet, corners):
+        w = np.asarray(wrenches[foot], dtype=float)
+        p = c.mean(axis=0)
+        fz += w[2]
+        moment += w[2] * p[:2] + np.array([-w[4], w[3]])
+    if fz <= 0.01 * weight:
+        return float("nan")
+    return inside_polygon(moment / fz, corners.reshape(-1, 3)[:, :2])
 
 
 class ControllerRun(NamedTuple):
@@ -274,16 +308,21 @@ def run_controller(
     sim = Simulator(robot, dt=DT, contacts=contacts, torque_limits=model.tau_max)
     wrenches: list[np.ndarray] = []
     cops: list[np.ndarray] = []
+    margins: list[float | None] = []
 
     def record(s: Simulator, command: Any) -> None:
         w = s.foot_wrenches()
         wrenches.append(w)
         cops.append(s.sole_cops(w))
+        margins.append(commanded_margin(robot, s.sole_corners(),
+                                        getattr(command, "wrenches", None), s.weight))
 
     log = simulate(robot, controller, duration, events, sim=sim, progress=tick, on_step=record)
     nfeet = len(robot.feet)
     half = np.array([[robot.contact(f).half_length, robot.contact(f).half_width]
                      for f in robot.feet])
+    margin = (None if any(m is None for m in margins)
+              else np.array(margins, dtype=float))
     support = Support(np.array(wrenches).reshape(-1, nfeet, 6),
-                      np.array(cops).reshape(-1, nfeet, 2), half)
+                      np.array(cops).reshape(-1, nfeet, 2), half, margin)
     return ControllerRun(log, note, support)

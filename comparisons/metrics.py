@@ -30,9 +30,16 @@ welds of ``"welded"`` mode), when the trace has them:
 - ``cop_outside_sole_max_mm``: the largest distance of a foot's centre of
   pressure outside its sole rectangle over the run (0: always inside) [mm];
 - ``cop_outside_sole_s``: the first time a foot's centre of pressure left its
-  sole, or its normal force was not positive (``None``: never) [s];
+  sole (by more than :data:`COP_TOLERANCE`), or its normal force was at most 1 %
+  of the weight (``None``: never) [s];
 - ``normal_force_min_n``: the smallest normal force on a foot (negative: the
-  weld pulled the foot down, which no floor can do) [N].
+  weld pulled the foot down, which no floor can do) [N];
+- ``commanded_cop_outside_support_max_mm``: the largest distance outside the
+  soles' convex hull of the centre of pressure of the contact wrenches the
+  controller commanded (its own model's support; ``None`` when it reports
+  none, as PlaCo) [mm];
+- ``commanded_cop_outside_support_s``: the first time that commanded centre of
+  pressure left the hull, or the commanded support pulled (``None``: never) [s].
 
 With welded feet these say whether the motion could have been made on a floor
 that only pushes: a centre of pressure outside the sole is a foot that would
@@ -55,6 +62,10 @@ FALL_HEIGHT_RATIO = 0.6
 
 SUPPORT_SETTLE_S = 0.05
 """Support metrics start at this time [s] (the soft contacts engage during the first steps)."""
+
+COP_TOLERANCE = 1e-3
+"""A centre of pressure has left its sole (or the support) when it is more than this
+outside [m] (MuJoCo's soft contacts and welds overshoot by fractions of a millimetre)."""
 
 
 @dataclass
@@ -93,8 +104,10 @@ class Trace:
         foot_wrench: Wrench of the world on each foot ``(N, nfeet, 6)`` (force, torque about
             the foot site) [N, N m] (``None``: not recorded).
         sole_cop: Centre of pressure of each foot in its sole frame ``(N, nfeet, 2)`` [m]
-            (``nan`` where the normal force is not positive).
+            (``nan`` where the normal force is at most 1 % of the weight).
         sole_half: Half length and half width of each sole ``(nfeet, 2)`` [m].
+        commanded_margin: Signed distance of the commanded support's centre of pressure
+            inside the soles' hull ``(N,)`` [m] (``nan``: pulling; ``None``: not reported).
         extra: Further named series ``(N, ...)`` for plots (e.g. obstacle distance).
 
     """
@@ -120,6 +133,7 @@ class Trace:
     foot_wrench: np.ndarray | None = None
     sole_cop: np.ndarray | None = None
     sole_half: np.ndarray | None = None
+    commanded_margin: np.ndarray | None = None
     extra: dict[str, np.ndarray] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
@@ -216,13 +230,23 @@ def support_metrics(trace: Trace) -> dict[str, float | None]:
     fz = trace.foot_wrench[keep][:, :, 2]
     outside = np.maximum(np.abs(cop) - trace.sole_half[None], 0.0)
     dist = np.linalg.norm(np.nan_to_num(outside, nan=0.0), axis=2)  # (N, nfeet)
-    bad = (dist > 0.0).any(axis=1) | np.isnan(cop).any(axis=(1, 2))
+    bad = (dist > COP_TOLERANCE).any(axis=1) | np.isnan(cop).any(axis=(1, 2))
     first = np.flatnonzero(bad)
-    return {
+    out: dict[str, float | None] = {
         "cop_outside_sole_max_mm": 1e3 * float(dist.max()),
         "cop_outside_sole_s": float(t[first[0]]) if first.size else None,
         "normal_force_min_n": float(fz.min()),
+        "commanded_cop_outside_support_max_mm": None,
+        "commanded_cop_outside_support_s": None,
     }
+    if trace.commanded_margin is not None:
+        m = np.asarray(trace.commanded_margin)[keep]
+        outside = np.flatnonzero(~(m >= -COP_TOLERANCE))  # nan (pulling) counts as outside
+        finite = m[np.isfinite(m)]
+        out["commanded_cop_outside_support_max_mm"] = (
+            1e3 * float(max(0.0, -finite.min())) if finite.size else None)
+        out["commanded_cop_outside_support_s"] = float(t[outside[0]]) if outside.size else None
+    return out
 
 
 def run_metrics(trace: Trace) -> dict[str, float | int | bool | None]:

@@ -98,5 +98,7 @@ def trace_from_log(
         foot_wrench=None if support is None else support.foot_wrench[:n],
         sole_cop=None if support is None else support.sole_cop[:n],
         sole_half=None if support is None else support.sole_half,
+        commanded_margin=(None if support is None or support.commanded_margin is None
+                          else support.commanded_margin[:n]),
         extra=dict(extra or {}),
     )

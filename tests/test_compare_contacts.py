@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 
+import numpy as np
 import pytest
 
 from comparisons import get_scenario
@@ -24,6 +25,25 @@ def test_cli_refuses_an_unknown_contact_mode(capsys):
     assert "--contacts" in capsys.readouterr().err
 
 
+def test_commanded_margin_of_a_support():
+    """Centre of pressure of commanded wrenches against the hull of two 0.2 x 0.1 m soles."""
+    from comparisons.common import commanded_margin
+    from hqp.robots import load
+
+    robot = load("paper-humanoid")
+    sole = np.array([[0.1, 0.05, 0.0], [-0.1, 0.05, 0.0], [-0.1, -0.05, 0.0], [0.1, -0.05, 0.0]])
+    corners = np.stack([sole + [0.0, 0.1, 0.0], sole - [0.0, 0.1, 0.0]])  # hull: y in +-0.15
+    push = np.array([0.0, 0.0, 300.0, 0.0, 0.0, 0.0])
+    left, right = robot.feet
+    assert commanded_margin(robot, corners, {left: push, right: push}, 700.0) == pytest.approx(0.1)
+    behind = push + [0, 0, 0, 0, 300.0 * 0.15, 0]  # tau_y > 0: CoP 0.15 m behind each sole
+    assert commanded_margin(robot, corners, {left: behind, right: behind}, 700.0) == \
+        pytest.approx(-0.05)
+    assert np.isnan(commanded_margin(robot, corners, {left: -push, right: push}, 700.0))
+    assert commanded_margin(robot, corners, {left: push}, 700.0) is None
+    assert commanded_margin(robot, corners, {}, 700.0) is None
+
+
 @pytest.mark.slow
 def test_welded_runs_carry_their_mode_and_support_wrenches():
     """The law, 0.2 s, welded: every run says its mode and has the support metrics."""
@@ -41,3 +61,4 @@ def test_welded_runs_carry_their_mode_and_support_wrenches():
         if mode == "welded":  # the welds push on both soles, centres of pressure inside
             assert row["cop_outside_sole_max_mm"] == 0.0 and row["cop_outside_sole_s"] is None
             assert row["normal_force_min_n"] > 100.0
+            assert row["commanded_cop_outside_support_s"] is None

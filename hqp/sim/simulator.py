@@ -75,6 +75,10 @@ welded feet by about 1 mm in 0.2 s."""
 WELD_SOLIMP = (0.99, 0.999, 0.001, 0.5, 2.0)
 """``solimp`` of the feet's weld equalities (impedance close to 1: a nearly hard constraint)."""
 
+COP_MIN_FORCE = 0.01
+"""A foot's centre of pressure is defined where its normal force exceeds this fraction of the
+robot's weight (below it, a moment of round-off size moves it by centimetres)."""
+
 SEAT_DEPTH = 5e-5
 """Depth [m] the feet start below the floor on a default :meth:`Simulator.reset`: about
 the robots' equilibrium sink standing (0.03-0.06 mm), so both soles are in contact from
@@ -179,6 +183,9 @@ class Simulator:
                 if self._body_root_foot(int(self.mj_model.geom_bodyid[g])) is not None:
                     self.mj_model.geom_contype[g] = 0
                     self.mj_model.geom_conaffinity[g] = 0
+        self.weight = float(self.mj_model.body_subtreemass[1]
+                            * np.linalg.norm(self.mj_model.opt.gravity))
+        """Weight of the robot [N]."""
         self._mujoco = mujoco
         self.reset()
 
@@ -354,7 +361,8 @@ class Simulator:
         """Centre of pressure of each foot's wrench in its sole frame ``(nfeet, 2)`` [m].
 
         ``x = -tau_y / f_z``, ``y = tau_x / f_z`` in the foot site's frame (``nan`` where the
-        normal force is not positive: the foot pulls on the floor or carries nothing).
+        normal force is at most :data:`COP_MIN_FORCE` x the robot's weight: the foot pulls on
+        the floor or carries next to nothing, and its centre of pressure is not defined).
 
         Args:
             wrenches: :meth:`foot_wrenches` of the current instant, if already read.
@@ -362,10 +370,11 @@ class Simulator:
         """
         w = self.foot_wrenches() if wrenches is None else np.asarray(wrenches)
         out = np.full((len(self._foot_sites), 2), np.nan)
+        f_min = COP_MIN_FORCE * self.weight
         for i, site in enumerate(self._foot_sites):
             R = self.mj_data.site_xmat[site].reshape(3, 3)
             f, tau = R.T @ w[i, :3], R.T @ w[i, 3:]
-            if f[2] > 1e-9:
+            if f[2] > f_min:
                 out[i] = (-tau[1] / f[2], tau[0] / f[2])
         return out
 
