@@ -415,3 +415,9 @@ def test_the_progress_bar_draws_on_a_terminal_and_stays_off_elsewhere(monkeypatc
             for k in range(11):
                 progress(0.3 * k, 3.0)
         assert ("stand:" in stream.getvalue() and "/3.0 s" in stream.getvalue()) is drawn
+
+
+def test_hqp_behaviors_and_run_s_summary_fit_100_columns(capsys):
+    assert main(["behaviors"]) == 0
+    out = capsys.readouterr().out
+    assert "squat-jump" in out and max(len(line) for line in out.splitlines()) <= 100

@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import argparse
 import json
+import textwrap
 from typing import Any
 
+from hqp.app.console import TABLE_WIDTH
 from hqp.behaviors.loader import library_names, load_behavior
 
 
@@ -29,8 +31,12 @@ def command(args: argparse.Namespace) -> int:
         print(json.dumps({"behaviors": rows}))
     else:
         width = max(len(r["name"]) for r in rows)
+        indent = " " * (width + 2)
         for r in rows:
-            print(f"{r['name']:<{width}}  {r['description']}")
-            print(f"{'':<{width}}  phases: {', '.join(r['phases'])}"
-                  + (f"; inputs: {', '.join(r['inputs'])}" if r["inputs"] else ""))
+            phases = (f"phases: {', '.join(r['phases'])}"
+                      + (f"; inputs: {', '.join(r['inputs'])}" if r["inputs"] else ""))
+            print(textwrap.fill(r["description"], TABLE_WIDTH,
+                                initial_indent=f"{r['name']:<{width}}  ", subsequent_indent=indent))
+            print(textwrap.fill(phases, TABLE_WIDTH, initial_indent=indent,
+                                subsequent_indent=indent))
     return 0
