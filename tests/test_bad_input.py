@@ -313,6 +313,7 @@ def test_hqp_run_walk_on_g1_prints_no_placo_warning(capfd):
     assert main(["run", "walk", "--robot", "g1", "--duration", "0.01"]) == 0
     captured = capfd.readouterr()
     assert "WARNING" not in captured.err and "behavior walk on g1" in captured.out
+    assert max(len(line) for line in captured.out.splitlines()) <= 100
 
 
 def test_a_mujoco_gl_backend_that_cannot_load_is_one_line():
@@ -417,7 +418,7 @@ def test_the_progress_bar_draws_on_a_terminal_and_stays_off_elsewhere(monkeypatc
         assert ("stand:" in stream.getvalue() and "/3.0 s" in stream.getvalue()) is drawn
 
 
-def test_hqp_behaviors_and_run_s_summary_fit_100_columns(capsys):
+def test_hqp_behaviors_fits_100_columns(capsys):
     assert main(["behaviors"]) == 0
     out = capsys.readouterr().out
     assert "squat-jump" in out and max(len(line) for line in out.splitlines()) <= 100
