@@ -116,14 +116,14 @@ class BoxGrab(Scenario):
     def panels(trace: Trace, left: np.ndarray, left_goal: np.ndarray) -> list[Panel]:
         """CoG error, hand distances to the box sides, trunk tilt, right hand height."""
         t = trace.t
-        err = 1e2 * trace.cog_error
+        err = 1e3 * trace.cog_error  # [mm], as in the tables
         assert_hand = trace.hand is not None and trace.hand_goal is not None
         hand = trace.hand if assert_hand else np.zeros((t.size, 3))
         goal = trace.hand_goal if assert_hand else np.zeros((t.size, 3))
         d_right = 1e2 * np.linalg.norm(hand - goal, axis=1)
         d_left = 1e2 * np.linalg.norm(left - left_goal, axis=1)
         return [
-            Panel("Balancing Error", "error [cm]", t,
+            Panel("Balancing Error", "error [mm]", t,
                   (Line("X Direction", err[:, 0]), Line("Y Direction", err[:, 1]))),
             Panel("Hands to the Box", "distance [cm]", t,
                   (Line("right hand", d_right), Line("left hand", d_left))),

@@ -224,9 +224,9 @@ class HandReach(Scenario):
     def panels(trace: Trace) -> list[Panel]:
         """Panels like the paper's Figures 4-5: CoG error, hand height, elbow, knee (+ hip)."""
         t = trace.t
-        err = 1e2 * trace.cog_error
+        err = 1e3 * trace.cog_error  # [mm], as in the tables
         out = [
-            Panel("Balancing Error", "error [cm]", t,
+            Panel("Balancing Error", "error [mm]", t,
                   (Line("X Direction", err[:, 0]), Line("Y Direction", err[:, 1]))),
         ]
         if trace.hand is not None and trace.hand_goal is not None:

@@ -165,10 +165,10 @@ class Obstacle(Scenario):
     def panels(trace: Trace) -> list[Panel]:
         """CoG error, obstacle distance against ``d_safe``, hand error, a torso joint."""
         t = trace.t
-        err = 1e2 * trace.cog_error
+        err = 1e3 * trace.cog_error  # [mm], as in the tables
         dist = 1e2 * trace.extra["obstacle_distance"]
         out = [
-            Panel("Balancing Error", "error [cm]", t,
+            Panel("Balancing Error", "error [mm]", t,
                   (Line("X Direction", err[:, 0]), Line("Y Direction", err[:, 1]))),
             Panel("Obstacle Distance", "distance [cm]", t,
                   (Line("d_safe", np.full_like(dist, 1e2 * D_SAFE), "dashed"),

@@ -201,12 +201,12 @@ class Screwgun(Scenario):
     def panels(trace: Trace) -> list[Panel]:
         """CoG error, hand tracking error, hand height against the point, a knee angle."""
         t = trace.t
-        err = 1e2 * trace.cog_error
+        err = 1e3 * trace.cog_error  # [mm], as in the tables
         hand = trace.hand if trace.hand is not None else np.zeros((t.size, 3))
         goal = trace.hand_goal if trace.hand_goal is not None else hand
         d = 1e2 * np.linalg.norm(hand - goal, axis=1)
         out = [
-            Panel("Balancing Error", "error [cm]", t,
+            Panel("Balancing Error", "error [mm]", t,
                   (Line("X Direction", err[:, 0]), Line("Y Direction", err[:, 1]))),
             Panel("Hand to Teleoperated Point", "distance [cm]", t, (Line("hand", d),)),
             Panel("Right Hand Vertical Position", "Z [m]", t,

@@ -2,7 +2,7 @@
 
 A figure is a grid of :class:`Panel` objects, each a few time series with a
 title and axis labels. The scenario decides what goes in the panels (for
-``hand-reach``: centre-of-gravity error x/y [cm], right-hand height against
+``hand-reach``: centre-of-gravity error x/y [mm], right-hand height against
 its goal, right elbow and knee flexion against their limits); this module
 only draws them, with matplotlib's non-interactive ``Agg`` backend.
 """

@@ -422,3 +422,16 @@ def test_hqp_behaviors_fits_100_columns(capsys):
     assert main(["behaviors"]) == 0
     out = capsys.readouterr().out
     assert "squat-jump" in out and max(len(line) for line in out.splitlines()) <= 100
+
+
+@pytest.mark.slow
+def test_the_figures_give_the_cog_error_in_mm_like_the_tables():
+    from comparisons import get_scenario
+
+    result = get_scenario("hand-reach").run(duration=0.2, controllers=["hqp"])
+    run = next(r for r in result.runs if r.spec.hierarchy == "shared")
+    panel = next(p for p in run.panels if p.title == "Balancing Error")
+    assert panel.ylabel == "error [mm]"
+    largest = np.hypot(panel.lines[0].y, panel.lines[1].y).max()
+    assert largest > 0.1  # [mm]: the shared hierarchy lets the hand drag the CoG
+    np.testing.assert_allclose(largest, run.row()["cog_error_max_mm"], rtol=1e-6)
