@@ -435,3 +435,26 @@ def test_the_figures_give_the_cog_error_in_mm_like_the_tables():
     largest = np.hypot(panel.lines[0].y, panel.lines[1].y).max()
     assert largest > 0.1  # [mm]: the shared hierarchy lets the hand drag the CoG
     np.testing.assert_allclose(largest, run.row()["cog_error_max_mm"], rtol=1e-6)
+
+
+def test_quadprog_fallbacks_are_counted_for_the_summary():
+    from hqp.app.run import _summary
+    from hqp.solver.backends import QPBackend
+    from hqp.solver.qp import last_resort_count, solve_qp
+
+    class Broken(QPBackend):
+        name = "broken-for-count"
+
+        def solve(self, slot, H, g, E, e, C, lo, up):
+            return np.full(H.shape[0], np.nan), False
+
+    before = last_resort_count()
+    for _ in range(3):
+        solve_qp(Broken(), ("count", 0), np.eye(2), np.zeros(2), None, None, np.eye(2),
+                 -np.ones(2), np.ones(2))
+    assert last_resort_count() - before == 3
+    data = {"behavior": "b", "robot": "r", "controller": "hqp", "duration_s": 1.0,
+            "fell": False, "fall_reason": None, "phases": ["p"], "steps": 0,
+            "flight_time_s": 0.0, "max_torque_ratio": 0.1, "max_torque_jump_nm": 0.0,
+            "feasibility_events": [], "qp_fallbacks": 3}
+    assert "QP fallbacks: quadprog solved 3 level QP(s)" in _summary(data)

@@ -20,9 +20,10 @@ from typing import Any, TextIO
 
 from comparisons import CONTROLLERS, SCENARIOS, get_scenario
 from comparisons.report import format_table, write_plots
-from hqp.app.console import stdout_to_stderr
+from hqp.app.console import fallback_note, stdout_to_stderr
 from hqp.errors import InvalidInput
 from hqp.sim.simulator import CONTACT_MODES
+from hqp.solver.qp import last_resort_count
 from hqp.threads import single_blas_thread
 
 
@@ -103,6 +104,7 @@ def _run(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
 
     results = []
     for scenario in scenarios:
+        fallbacks = last_resort_count()
         result = scenario.run(
             robot=args.robot,
             controllers=args.controllers,
@@ -116,6 +118,8 @@ def _run(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
                 progress(f"[{result.scenario}] wrote {path}")
         if not args.json:
             print(format_table(result, wide=args.wide), file=out, flush=True)
+            if last_resort_count() > fallbacks:
+                print(fallback_note(last_resort_count() - fallbacks), file=out)
             print(file=out)
     if args.json:
         if args.all:

@@ -18,7 +18,8 @@ from typing import Any
 
 from tqdm import tqdm
 
-__all__ = ["output_path_problem", "progress_bar", "stdout_to_stderr", "TABLE_WIDTH"]
+__all__ = ["fallback_note", "output_path_problem", "progress_bar", "stdout_to_stderr",
+           "TABLE_WIDTH"]
 
 TABLE_WIDTH = 100
 """Widest line of the command line's default tables [columns] (``--wide`` or ``--json``:
@@ -105,3 +106,9 @@ def output_path_problem(path: str | Path) -> str | None:
     if p.exists() and not os.access(p, os.W_OK):
         return "the file exists and cannot be written"
     return None
+
+
+def fallback_note(count: int) -> str:
+    """Return the summary line of the level QPs quadprog took over (``-vv`` logs each)."""
+    return (f"QP fallbacks: quadprog solved {count} level QP(s) the backend returned nothing "
+            "finite for (normal on hard steps; -vv logs each)")

@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from hqp.app.console import output_path_problem, progress_bar, stdout_to_stderr
+from hqp.app.console import fallback_note, output_path_problem, progress_bar, stdout_to_stderr
 from hqp.behaviors.behavior import Behavior
 from hqp.behaviors.setup import prepare
 from hqp.behaviors.spec import BehaviorSpec
@@ -33,6 +33,7 @@ from hqp.sim.loop import Step, closed_loop
 from hqp.sim.render import Video
 from hqp.sim.simulator import ContactReading, Simulator
 from hqp.solver.backends import known_backends
+from hqp.solver.qp import last_resort_count
 
 STEP_MIN_AIR_TIME = 0.1
 """A footstep: the swing foot is out of contact at least this long [s] ..."""
@@ -259,11 +260,13 @@ def run_behavior(
     recorder = (None if video is None
                 else Video(sim, video, distance=3.5, azimuth=120.0, elevation=-15.0))
     meter = _Meter(behavior, sim, list(robot_obj.feet), plot is not None, recorder)
+    fallbacks = last_resort_count()
     outcome = closed_loop(sim, behavior, total, before_step=meter.before_step,
                           after_step=meter.after_step, clock="steps", stop_on_fall=stop_on_fall,
                           progress=None if progress is None else lambda t: progress(t, total))
     metrics = meter.metrics(outcome.t_end, getattr(ctrl, "backend", None))
     metrics["realtime_factor"] = round(outcome.realtime_factor, 3)
+    metrics["qp_fallbacks"] = last_resort_count() - fallbacks
     if recorder is not None:
         metrics["video"] = str(recorder.close())
     metrics.update(behavior.metrics())
@@ -408,7 +411,10 @@ def _summary(data: dict[str, Any]) -> str:
         lines.append(f"  mean speed {data['mean_speed_m_s']:.3f} m/s, CoM tracking error max "
                      f"{1e3 * data['com_tracking_error_max_m']:.1f} mm")
     lines.extend(_events_summary(data["feasibility_events"]))
+    if data.get("qp_fallbacks"):
+        lines.append(f"  {fallback_note(data['qp_fallbacks'])}")
     return "\n".join(lines)
+
 
 
 def _events_summary(events: list[dict[str, Any]], most: int = 4) -> list[str]:

@@ -35,8 +35,20 @@ unconverged finite iterate is kept, as before)."""
 
 
 _WARNED_LAST_RESORT: set[tuple[str, Any]] = set()
-"""``(backend name, QP slot)`` pairs whose fall-back to quadprog was already logged as a
-warning: a controller at 1 kHz would otherwise repeat it every step of a hard phase."""
+"""``(backend name, QP slot)`` pairs whose fall-back to quadprog was already logged: a
+controller at 1 kHz would otherwise repeat the first-time note every step of a hard phase."""
+
+_LAST_RESORTS = [0]
+"""Fall-backs to quadprog in this process (:func:`last_resort_count`)."""
+
+
+def last_resort_count() -> int:
+    """Return how many level QPs quadprog took over in this process.
+
+    Each time a backend returned no finite point, relaxed retries included; a run reports
+    the difference across it.
+    """
+    return _LAST_RESORTS[0]
 
 
 def solve_qp(backend: QPBackend, slot: Any, H: np.ndarray, g: np.ndarray,
@@ -89,6 +101,7 @@ def solve_qp(backend: QPBackend, slot: Any, H: np.ndarray, g: np.ndarray,
         # Last resort (rare: nearly degenerate feasible sets of real whole-body
         # stacks): another active-set method, rather than no solution at all.
         key = (backend.name, slot)
+        _LAST_RESORTS[0] += 1
         if key in _WARNED_LAST_RESORT:
             logger.debug("backend %s returned no finite solution on QP %s; trying quadprog",
                          backend.name, slot)
