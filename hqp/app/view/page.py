@@ -96,8 +96,8 @@ def task_table(rows: tuple[TaskRow, ...]) -> str:
         status = STATUS_MARK.get(r.status, r.status)
         if r.status == "conflict" and r.yields_to is not None:
             status += f" → {r.yields_to}"
-        err = "" if not np.isfinite(r.error) else f"{r.error:.3g}"
-        sig = "" if not np.isfinite(r.sigma_min) else f"{r.sigma_min:.3g}"
+        err = "" if not np.isfinite(r.error) else f"{r.error:.2g}"
+        sig = "" if not np.isfinite(r.sigma_min) else f"{r.sigma_min:.2g}"
         lines.append(f"| {r.level} | {r.name} | {status} | {r.residual:.2g} | {err} | {sig} |")
     return "\n".join(lines)
 
@@ -189,7 +189,7 @@ class ViewerPage:
                 self.charts[signal] = gui.add_uplot(
                     data=(np.array([0.0, 1e-3]), empty), title=label,
                     series=({"label": "t [s]"}, {"label": label, "stroke": color, "width": 2}),
-                    aspect=2.5)
+                    scales={"x": {"time": False}}, aspect=2.5)
 
     def _toggle_pause(self) -> None:
         snap = self.session.snapshot()
