@@ -408,7 +408,8 @@ def _summary(data: dict[str, Any]) -> str:
         f"step: {data['max_torque_jump_nm']:.1f} N m",
     ]
     if "mean_speed_m_s" in data:
-        lines.append(f"  mean speed {data['mean_speed_m_s']:.3f} m/s, CoM tracking error max "
+        speed = round(data["mean_speed_m_s"], 3) or 0.0  # no "-0.000"
+        lines.append(f"  mean speed {speed:.3f} m/s, CoM tracking error max "
                      f"{1e3 * data['com_tracking_error_max_m']:.1f} mm")
     lines.extend(_events_summary(data["feasibility_events"]))
     if data.get("qp_fallbacks"):
