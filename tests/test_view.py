@@ -106,6 +106,13 @@ def test_port_in_use_is_a_clear_error(capsys):
     assert f"port {port}" in err and "in use" in err and err.count("\n") == 1
 
 
+def test_missing_view_extra_is_a_clear_error(monkeypatch, capsys):
+    monkeypatch.setattr("hqp.app.view.page._IMPORT_ERROR", "No module named 'viser'")
+    assert main(["view", "stand", "--no-browser"]) == 2
+    err = capsys.readouterr().err
+    assert 'pip install -e ".[view]"' in err and "viser" in err and err.count("\n") == 1
+
+
 # ------------------------------------------------------------------ in a browser
 @pytest.mark.slow
 def test_page_in_headless_chromium(tmp_path):
