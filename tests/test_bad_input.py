@@ -457,4 +457,6 @@ def test_quadprog_fallbacks_are_counted_for_the_summary():
             "fell": False, "fall_reason": None, "phases": ["p"], "steps": 0,
             "flight_time_s": 0.0, "max_torque_ratio": 0.1, "max_torque_jump_nm": 0.0,
             "feasibility_events": [], "qp_fallbacks": 3}
-    assert "QP fallbacks: quadprog solved 3 level QP(s)" in _summary(data)
+    summary = _summary(data)
+    assert "QP fallbacks: quadprog solved 3 level QP(s)" in summary
+    assert max(len(line) for line in summary.splitlines()) <= 100

@@ -110,5 +110,4 @@ def output_path_problem(path: str | Path) -> str | None:
 
 def fallback_note(count: int) -> str:
     """Return the summary line of the level QPs quadprog took over (``-vv`` logs each)."""
-    return (f"QP fallbacks: quadprog solved {count} level QP(s) the backend returned nothing "
-            "finite for (normal on hard steps; -vv logs each)")
+    return f"QP fallbacks: quadprog solved {count} level QP(s) the backend could not (-vv logs each)"
