@@ -104,11 +104,17 @@ def test_port_in_use_is_a_clear_error(capsys):
         assert main(["view", "stand", "--no-browser", "--port", str(port)]) == 2
     err = capsys.readouterr().err
     assert f"port {port}" in err and "in use" in err and err.count("\n") == 1
+    with pytest.raises(ViewError, match="1-65535"):
+        check_port("127.0.0.1", 70000)
+    assert main(["view", "stand", "--no-browser", "--robot", "no-such-robot",
+                 "--port", str(measure.free_port())]) == 2
+    err = capsys.readouterr().err
+    assert "no-such-robot" in err and err.count("\n") == 1
 
 
 def test_missing_view_extra_is_a_clear_error(monkeypatch, capsys):
     monkeypatch.setattr("hqp.app.view.page._IMPORT_ERROR", "No module named 'viser'")
-    assert main(["view", "stand", "--no-browser"]) == 2
+    assert main(["view", "stand", "--no-browser", "--port", str(measure.free_port())]) == 2
     err = capsys.readouterr().err
     assert 'pip install -e ".[view]"' in err and "viser" in err and err.count("\n") == 1
 

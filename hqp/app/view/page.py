@@ -79,7 +79,9 @@ def require_viser() -> None:
 
 
 def check_port(host: str, port: int) -> None:
-    """Raise :class:`ViewError` when ``port`` cannot be bound on ``host`` (in use)."""
+    """Raise :class:`ViewError` when ``port`` is not in 1-65535 or cannot be bound on ``host``."""
+    if not 0 < port < 65536:
+        raise ViewError(f"port must be in 1-65535, got {port}")
     with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as sock:
         try:
             sock.bind((host, port))
