@@ -110,4 +110,5 @@ def output_path_problem(path: str | Path) -> str | None:
 
 def fallback_note(count: int) -> str:
     """Return the summary line of the level QPs quadprog took over (``-vv`` logs each)."""
-    return f"QP fallbacks: quadprog solved {count} level QP(s) the backend could not (-vv logs each)"
+    return (f"QP fallbacks: quadprog solved {count} level QP(s) the backend could not "
+            "(-vv logs each)")
