@@ -3,9 +3,10 @@
 The server-side half drives :class:`hqp.app.view.session.ViewSession` the way the page does
 (its commands, its snapshots). The browser half starts ``hqp view stand --no-browser`` as a
 process, drives its page with Playwright in Debian's ``chromium`` (installed by ``.ci/run``):
-clicks the ``reach`` button, types a new hand goal in the page's goal field, takes a
-screenshot, and checks that the hand moved towards the goal, the task panel, a second
-instance on the same port, Ctrl-C and the record written on exit.
+clicks the ``reach`` button, drags the hand goal's handle up with the mouse and types a
+new goal in the page's goal field, takes a screenshot, and checks that the hand moved
+towards the goal, the task panel, a second instance on the same port, Ctrl-C and the record
+written on exit.
 """
 
 from __future__ import annotations
@@ -138,8 +139,16 @@ def test_page_in_headless_chromium(tmp_path):
             fields = measure.open_reach(page, f"http://127.0.0.1:{port}")  # clicks "reach"
             goal = [float(f.input_value()) for f in fields]
             assert goal == pytest.approx([0.55, -0.22, 1.10])  # the behavior's default
-            new = [goal[0], goal[1] + 0.1, goal[2] + 0.1]
-            measure.set_vector(fields[1:], new[1:])  # the page's own goal field
+            # drag the red sphere's vertical arrow up with the mouse (seed 001, Figure 14)
+            measure.drag_goal_up(page, goal, 60, 1280, 800)
+            page.wait_for_function(
+                "([id, z]) => parseFloat(document.querySelector(`[data-hqp='${id}']`).value) > z",
+                arg=["hand_goal (hand)2", goal[2] + 0.05], timeout=60000)
+            dragged = [float(f.input_value()) for f in fields]
+            assert dragged[:2] == pytest.approx(goal[:2], abs=1e-3)  # the z arrow only
+            # then a goal typed in the page's own goal field
+            new = [goal[0], goal[1] + 0.1, dragged[2]]
+            measure.set_vector(fields[1:2], new[1:2])
             time.sleep(1.0)  # the goal's line is written, the hand turns towards it
             d0 = d1 = measure.hand_distance(page)
             deadline = time.monotonic() + 120
@@ -165,4 +174,5 @@ def test_page_in_headless_chromium(tmp_path):
     reach = record["runs"][1]
     assert reach["behavior"] == "reach"
     goals = [a["value"] for a in reach["actions"] if a["action"] == "goal"]
-    assert goals and goals[-1] == pytest.approx(new, abs=1e-3)
+    assert any(g[2] > goal[2] + 0.05 and g[1] == pytest.approx(goal[1]) for g in goals)
+    assert goals[-1] == pytest.approx(new, abs=0.006)  # the field shows 2 decimals

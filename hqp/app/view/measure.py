@@ -1,10 +1,10 @@
 """Measure ``hqp view`` in a headless Chromium: page frame rate and the loop's real-time factor.
 
 ``python -m hqp.app.view.measure --robot g1 --seconds 20 --screenshot docs/figures/view.png``
-starts ``hqp view reach --no-browser`` on a free port, opens its page in Debian's
-``chromium`` through Playwright (software WebGL where there is no GPU), moves the hand goal
-continuously through the page's own goal field (a circle of 8 cm radius, 5 updates per
-second) and reports, as one JSON object on stdout: the page's frames per second (browser
+starts ``hqp view stand --no-browser`` on a free port, opens its page in Debian's
+``chromium`` through Playwright (software WebGL where there is no GPU), clicks *reach*,
+drags the hand goal's handle with the mouse, up and down by 60 px one drag after the other,
+and reports, as one JSON object on stdout: the page's frames per second (browser
 ``requestAnimationFrame`` callbacks), the scene updates the server sent per second and the
 loop's real-time factor (both as the page shows them), and where it wrote the screenshot.
 The browser helpers are shared with ``tests/test_view.py``.
@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import os
 import re
 import shutil
@@ -27,6 +26,10 @@ import time
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
+from hqp.app.view.page import CAMERA_FOV_DEG, CAMERA_LOOK_AT, CAMERA_POSITION, GOAL_HANDLE_SCALE
+
 try:  # test extra only: `pip install playwright`, and a chromium from the system
     from playwright.sync_api import sync_playwright
 except ImportError:  # pragma: no cover - depends on the environment
@@ -35,6 +38,8 @@ except ImportError:  # pragma: no cover - depends on the environment
 CHROMIUM_CANDIDATES = ("chromium", "chromium-browser", "google-chrome")
 CHROMIUM_ARGS = ("--use-angle=swiftshader", "--enable-unsafe-swiftshader", "--no-sandbox")
 """Software WebGL (no GPU needed); no sandbox (CI containers run as root)."""
+DRAG_PIXELS = 60
+"""Length of each mouse drag of the goal handle's vertical arrow [px] (up, then down)."""
 SCREENSHOT_HEIGHT = 1750
 """Height of the screenshot's viewport [px] (the measurement runs at ``--height``)."""
 FPS_SCRIPT = """() => { window.hqpFrames = 0;
@@ -116,6 +121,44 @@ def set_vector(fields: list[Any], values: Any) -> None:
         f.press("Enter")
 
 
+def screen_point(point: Any, width: int, height: int) -> tuple[float, float]:
+    """Return the pixel ``(x, y)`` of a world point ``(3,)`` [m] seen by the page's camera.
+
+    The camera the page starts with (:data:`~hqp.app.view.page.CAMERA_POSITION`, looking at
+    :data:`~hqp.app.view.page.CAMERA_LOOK_AT`, z up, vertical field of view
+    :data:`~hqp.app.view.page.CAMERA_FOV_DEG`) on a canvas filling the viewport.
+    """
+    cam = np.asarray(CAMERA_POSITION, dtype=float)
+    forward = np.asarray(CAMERA_LOOK_AT, dtype=float) - cam
+    forward /= np.linalg.norm(forward)
+    right = np.cross(forward, [0.0, 0.0, 1.0])
+    right /= np.linalg.norm(right)
+    up = np.cross(right, forward)
+    d = np.asarray(point, dtype=float) - cam
+    scale = 0.5 * height / np.tan(np.radians(CAMERA_FOV_DEG) / 2)
+    return (0.5 * width + scale * (d @ right) / (d @ forward),
+            0.5 * height - scale * (d @ up) / (d @ forward))
+
+
+def drag_goal_up(page: Any, goal: Any, pixels: float, width: int, height: int,
+                 steps: int = 10) -> None:
+    """Drag the vertical arrow of a goal handle at ``goal`` ``(3,)`` [m] up by ``pixels``.
+
+    A real mouse drag (press on the arrow, move in ``steps``, release), the way a user moves
+    the seed's red sphere; negative ``pixels`` drag it down. The camera must not have moved.
+    """
+    x, y = screen_point(np.asarray(goal, dtype=float) + [0.0, 0.0, 0.4 * GOAL_HANDLE_SCALE],
+                        width, height)
+    page.mouse.move(x, y)
+    page.wait_for_timeout(300)
+    page.mouse.down()
+    page.wait_for_timeout(300)
+    for k in range(1, steps + 1):
+        page.mouse.move(x, y - pixels * k / steps)
+        page.wait_for_timeout(100)
+    page.mouse.up()
+
+
 def page_number(page: Any, pattern: str) -> float:
     """Return the first number captured by ``pattern`` in the page's text."""
     match = re.search(pattern, page.inner_text("body"))
@@ -154,20 +197,19 @@ def measure(robot: str | None, seconds: float, screenshot: Path | None,
                 browser = launch(p, exe)
                 page = browser.new_page(viewport={"width": width, "height": height})
                 fields = open_reach(page, f"http://127.0.0.1:{port}")
-                center = [float(f.input_value()) for f in fields]
                 rtf, ups = [], []
                 page.evaluate(FPS_SCRIPT)
                 t0 = time.monotonic()
-                k = 0
+                k = moved = 0
                 while time.monotonic() - t0 < seconds:
-                    a = 2 * math.pi * k / 25  # a circle in 5 s at 5 updates/s
-                    set_vector(fields[1:], [center[1] + 0.08 * math.cos(a),
-                                            center[2] + 0.08 * math.sin(a)])
+                    before = [float(f.input_value()) for f in fields]
+                    drag_goal_up(page, before, DRAG_PIXELS * (1 if k % 2 == 0 else -1),
+                                 width, height)
+                    page.wait_for_timeout(500)
+                    moved += abs(float(fields[2].input_value()) - before[2]) > 0.01
                     k += 1
-                    if k % 5 == 0:
-                        rtf.append(page_number(page, r"real-time factor ([0-9.]+)"))
-                        ups.append(page_number(page, r"([0-9.]+) scene updates/s"))
-                    time.sleep(max(0.0, t0 + 0.2 * k - time.monotonic()))
+                    rtf.append(page_number(page, r"real-time factor ([0-9.]+)"))
+                    ups.append(page_number(page, r"([0-9.]+) scene updates/s"))
                 frames = page.evaluate("() => window.hqpFrames")
                 elapsed = time.monotonic() - t0
                 if screenshot is not None:  # tall enough for the task panel and the charts
@@ -189,7 +231,7 @@ def measure(robot: str | None, seconds: float, screenshot: Path | None,
         return round(float(sorted(xs)[len(xs) // 2]), 3) if xs else None
 
     return {"robot": record["viewer"]["robot"], "seconds": round(elapsed, 1),
-            "viewport": [width, height], "goal_updates": k,
+            "viewport": [width, height], "drags": k, "drags_that_moved_the_goal": moved,
             "page_fps": round(frames / elapsed, 3),
             "scene_updates_per_s_median": median(ups),
             "realtime_factor_median": median(rtf),

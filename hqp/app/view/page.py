@@ -63,6 +63,14 @@ CHART_LABELS = {
     "torque_ratio": ("max |tau| / tau_max", "#1f77b4"),
     "torque_change_nm": ("torque change per step [N m]", "#2ca02c"),
 }
+CAMERA_POSITION = (1.9, -1.7, 1.45)
+"""Initial camera position [m], world frame (z up)."""
+CAMERA_LOOK_AT = (0.15, 0.0, 0.85)
+"""Point the initial camera looks at [m]."""
+CAMERA_FOV_DEG = 75.0
+"""Vertical field of view of the camera [deg]."""
+GOAL_HANDLE_SCALE = 0.25
+"""Size of the goal handles [m]."""
 STATUS_MARK = {"satisfied": "ok", "conflict": "CONFLICT", "singular": "SINGULAR",
                "inactive": "inactive"}
 
@@ -152,8 +160,9 @@ class ViewerPage:
         model = session.robot.mujoco_model()
         self.scene = mjviser.ViserMujocoScene(self.server, model, num_envs=1)
         self.scene.camera_tracking_enabled = False  # world coordinates for the handles
-        self.server.initial_camera.position = (1.9, -1.7, 1.45)
-        self.server.initial_camera.look_at = (0.15, 0.0, 0.85)
+        self.server.initial_camera.position = CAMERA_POSITION
+        self.server.initial_camera.look_at = CAMERA_LOOK_AT
+        self.server.initial_camera.fov = np.radians(CAMERA_FOV_DEG)
         self.server.gui.configure_theme(control_width="large")
         self._build_gui()
 
@@ -210,7 +219,7 @@ class ViewerPage:
         for g in goals:
             orientation = g.kind == "orientation"
             handle = self.server.scene.add_transform_controls(
-                f"/goals/{g.input}", scale=0.25, disable_rotations=not orientation,
+                f"/goals/{g.input}", scale=GOAL_HANDLE_SCALE, disable_rotations=not orientation,
                 disable_axes=orientation, disable_sliders=orientation,
                 position=g.value if not orientation else (0.0, 0.0, 0.0),
                 wxyz=rpy_to_wxyz(g.value) if orientation else (1.0, 0.0, 0.0, 0.0))
