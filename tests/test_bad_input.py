@@ -153,6 +153,35 @@ def test_a_level_or_goal_the_controller_refuses_fails_at_load(tmp_path, capsys, 
     assert expected in _cli_error(capsys, "run", str(path))
 
 
+INPUT_GOAL = """\
+[behavior]
+initial = "reach"
+
+[inputs.target]
+default = [0.3, -0.2]
+
+[tasks.hand]
+type = "position"
+frame = "right_hand"
+goal = "input.target"
+
+[phases.reach]
+tasks = ["hand"]
+contacts = ["left_foot", "right_foot"]
+final = true
+"""
+
+
+def test_a_goal_fed_by_an_input_of_the_wrong_length_fails_at_load(tmp_path):
+    path = tmp_path / "reach2.toml"
+    path.write_text(INPUT_GOAL)
+    with pytest.raises(BehaviorFileError, match=re.escape("tasks.hand.goal")) as info:
+        prepare(path)
+    assert str(info.value).startswith(f"{path}:10: ") and "(2,)" in str(info.value)
+    path.write_text(INPUT_GOAL.replace("[0.3, -0.2]", "[0.3, -0.2, 1.0]"))
+    prepare(path)  # the right length loads
+
+
 @pytest.mark.parametrize("value", ["[1,2,3]", '"abc"', "NaN", "null", "true"])
 def test_a_set_value_of_the_wrong_kind_is_refused(capsys, value):
     line = _cli_error(capsys, "run", "squat-jump", "--set", f"takeoff_height={value}")

@@ -355,10 +355,10 @@ class Behavior:
             env["initial"] = initial
         if self.standing is not None:
             env["standing"] = self.standing
-        env["pose"] = _LazyNamespace(self._pose, self.spec.poses, "pose")
+        env["pose"] = _LazyNamespace(self.pose, self.spec.poses, "pose")
         return env
 
-    def _pose(self, name: str) -> np.ndarray:
+    def pose(self, name: str) -> np.ndarray:
         """Return the configuration ``(nq,)``: the standing one with the captured pose's joints."""
         model = self.controller.model
         q = (self.standing if self.standing is not None else model.q).copy()

@@ -16,7 +16,7 @@ import numpy as np
 
 from hqp import robots
 from hqp.behaviors.behavior import Behavior
-from hqp.behaviors.expressions import ExpressionError
+from hqp.behaviors.expressions import ExpressionError, Namespace
 from hqp.behaviors.factory import TaskFactory
 from hqp.behaviors.inputs import InputStream
 from hqp.behaviors.loader import file_error, load_behavior
@@ -92,10 +92,13 @@ def _with_overrides(spec: BehaviorSpec, overrides: dict[str, Any]) -> BehaviorSp
 
 def _check_for_controller(spec: BehaviorSpec, behavior: Behavior, ctrl: Any,
                           factory: TaskFactory) -> None:
-    """Check at load what only the controller can tell: levels and constant goals.
+    """Check at load what only the controller can tell: levels and the goals known then.
+
+    A goal written as numbers, or reading only inputs (their values at t = 0), ``standing``
+    and captured poses, is set once on a fresh task of its type.
 
     Raises:
-        BehaviorFileError: A level the controller does not have, or a constant goal the task
+        BehaviorFileError: A level the controller does not have, or such a goal the task
             refuses (wrong length, not a rotation, ...); the message names file, line, key.
 
     """
@@ -117,12 +120,29 @@ def _check_for_controller(spec: BehaviorSpec, behavior: Behavior, ctrl: Any,
                               == 1 else ("phases", pname, "goals", ts.name, g), e)
                           for g, e in phase.goals.get(ts.name, {}).items()})
             for gname, (gkey, expr) in goals.items():
-                if expr.names or expr.attributes:
+                if not expr.names <= _KNOWN_AT_LOAD or (
+                        "standing" in expr.names and behavior.standing is None):
                     continue  # read from the sensed state: checked when it is evaluated
                 try:
-                    factory.set_goals(factory.build(own), own, {gname: expr.evaluate({})})
+                    value = expr.evaluate(_load_env(spec, behavior))
+                    factory.set_goals(factory.build(own), own, {gname: value})
                 except (HQPError, ExpressionError) as exc:
                     raise file_error(spec.path, gkey, str(exc)) from None
+
+
+_KNOWN_AT_LOAD = frozenset({"input", "standing", "pose"})
+"""Names a goal may read that have a value before the run: the inputs at t = 0, the
+standing configuration, the captured poses."""
+
+
+def _load_env(spec: BehaviorSpec, behavior: Behavior) -> dict[str, Any]:
+    """Return the values of :data:`_KNOWN_AT_LOAD` before the run."""
+    stream = behavior.inputs
+    return {
+        "input": Namespace({k: stream.value(k, 0.0) for k in spec.inputs}, "input"),
+        "standing": behavior.standing,
+        "pose": Namespace({k: behavior.pose(k) for k in spec.poses}, "pose"),
+    }
 
 
 def prepare(
