@@ -293,9 +293,12 @@ def run_controller(
         note = placo_note(controller, hierarchy)
     else:
         controller = make_controller(spec_controller, robot, model, hierarchy, zone=zone)
-        if spec_controller == "nullspace" and hierarchy.collision:
-            note = ("the null-space law has no inequalities: obstacle-avoidance rows are not "
-                    "enforced")
+        if spec_controller == "nullspace":
+            note = ("the null-space law has no inequalities: friction, centre of pressure and "
+                    "torque limits are reported, not enforced; joint limits are the papers' "
+                    "activation zones")
+            if hierarchy.collision:
+                note += "; obstacle-avoidance rows are not enforced"
     if wrap is not None:
         controller = wrap(controller)
     last = [-1.0]

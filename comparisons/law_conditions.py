@@ -8,7 +8,8 @@ both hierarchies, and prints one JSON object per run: the contract's metrics and
 where the run leaves the paper's behaviour,
 
 - ``zone_entry_s``: the first time a joint enters its activation zone (``zone`` of a limit),
-  with ``zone_joints`` the joints in their zones then;
+  with ``zone_joints`` the joints in their zones then and ``zone_entry_speed_rad_s`` their
+  speeds (finite differences of the logged positions);
 - ``before_zone``: the largest CoG errors (x, y) [mm] and the hand's distance to its target
   [cm] up to that time;
 - ``saturated``: the joints whose commanded torque reached its limit (within 0.1 %), with the
@@ -42,9 +43,12 @@ def zone_report(run: RunResult, zone: float) -> dict[str, Any]:
     sat = np.abs(tau) >= 0.999 * tau_max
     saturated = {tr.joint_names[j]: float(tr.t[np.flatnonzero(sat[:, j])[0]])
                  for j in np.flatnonzero(sat.any(axis=0))}
+    joints = np.flatnonzero(inside[k]) if hit.size else np.zeros(0, dtype=int)
+    speed = np.abs(tr.q[k] - tr.q[max(k - 1, 0)]) / max(float(tr.t[k] - tr.t[max(k - 1, 0)]), 1e-9)
     return {
         "zone_entry_s": float(tr.t[k]) if hit.size else None,
-        "zone_joints": [tr.joint_names[j] for j in np.flatnonzero(inside[k])] if hit.size else [],
+        "zone_joints": [tr.joint_names[j] for j in joints],
+        "zone_entry_speed_rad_s": [round(float(speed[j]), 3) for j in joints],
         "before_zone": {"cog_x_max_mm": float(err[:, 0].max()),
                         "cog_y_max_mm": float(err[:, 1].max()),
                         "hand_distance_cm": float(dist[-1])},

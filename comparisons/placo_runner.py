@@ -251,7 +251,8 @@ def placo_note(controller: PlacoController, hierarchy: Hierarchy) -> str:
     """Say what PlaCo's hard/soft priorities cannot express of a hierarchy."""
     levels = [name for name, _ in hierarchy.levels]
     return (
-        f"PlaCo has hard/soft priorities only: of the levels {levels}, "
+        "PlaCo as its humanoid example sets it up (its own limits and regularisation); "
+        f"it has hard/soft priorities only: of the levels {levels}, "
         f"{controller.hard_levels or 'none'} became hard, the rest soft (traded by weights); "
         "strict priority between soft levels, the posture's W and inequalities below the top "
         "are not expressible"

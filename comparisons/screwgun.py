@@ -173,7 +173,7 @@ class Screwgun(Scenario):
         log, note, support = run_controller(spec.controller, rob, model, hierarchy, duration,
                                             progress, wrap=wrap, contacts=self.contacts)
         if spec.controller == "nullspace":
-            note = "the null-space law skips the internal-force rows (they act on contact forces)"
+            note += "; it skips the internal-force rows (they act on contact forces)"
         if spec.controller == "placo":
             note += "; no internal-force or gaze task mapped to PlaCo"
         t = np.asarray(log.t)
