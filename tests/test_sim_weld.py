@@ -59,3 +59,19 @@ def test_unilateral_default_is_unchanged():
     assert sim.contact_mode == "unilateral" and sim.mj_model.neq == 0
     welded = Simulator(robot, contacts="welded")
     assert welded.mj_model.neq == len(robot.feet)
+
+
+def test_welds_hold_rotated_feet_where_they_are():
+    """The weld's relative pose is the feet's own (a wrong convention snaps them elsewhere)."""
+    import pinocchio as pin
+
+    robot = load("paper-humanoid")
+    q = robot.q_standing.copy()
+    q[3:7] = pin.Quaternion(pin.utils.rpyToMatrix(0.2, 0.1, 0.7)).coeffs()
+    sim = Simulator(robot, contacts="welded")
+    sim.reset(q)
+    start = sim.sole_corners()
+    for _ in range(50):
+        sim.step(np.zeros(sim.na))
+    moved = np.linalg.norm(sim.sole_corners() - start, axis=2)
+    assert moved.max() < 1e-3  # every sole corner within 1 mm while the robot collapses
