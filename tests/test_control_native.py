@@ -67,6 +67,15 @@ def _same_command(a, b, what: str, tol: float = 1e-7, sigma_tol: float = 1e-8,
                                atol=1e-12, err_msg=what)
 
 
+def _same_errors(nat, py, what: str, tol: float = 1e-9) -> None:
+    """Every task's ``error()`` after the step, as the Python step leaves it."""
+    for task in py.stack.tasks:
+        a, b = nat.task(task.name).error(), task.error()
+        assert a.shape == b.shape, (what, task.name, a, b)
+        np.testing.assert_allclose(a, b, rtol=0, atol=tol * max(1.0, np.abs(b).max(initial=0)),
+                                   err_msg=f"{what}: {task.name}.error()")
+
+
 @pytest.mark.parametrize("name", robots.NAMES)
 @pytest.mark.parametrize("diagnostics", ["full", "residuals"])
 def test_native_controller_equals_the_python_step(name, diagnostics):
@@ -74,6 +83,7 @@ def test_native_controller_equals_the_python_step(name, diagnostics):
     for t, state in _states(robot, nat.model, 10, seed=7):
         a, b = nat.step(state, t), py.step(state, t)
         _same_command(a, b, f"{name} {diagnostics} t={t}")
+        _same_errors(nat, py, f"{name} {diagnostics} t={t}")
         assert a.timings["rows"] == 0.0 or t == 0.0  # native steps build no Python rows
     assert nat.native.steps >= 9  # the first step captures the contacts' references
     # the levels of a native step, copied out on demand, are the Python step's
@@ -141,6 +151,7 @@ def test_steps_the_native_step_does_not_run_are_python_steps():
         # the hand's ramp and the contact's release move the robot: QP points, as in conflict
         _same_command(nat.step(state, t), py.step(state, t), f"t={t}", tol=1e-5,
                       sigma_tol=1e-6, conflict_sigma=False)
+        _same_errors(nat, py, f"t={t}", tol=1e-6)
     assert nat.native.unsupported is None
     for ctrl in (nat, py):
         ctrl.add_task(EffortTask(ctrl.model), "posture", ramp_time=0.0)

@@ -68,6 +68,8 @@ class NativeStepMirror:
         controller: A controller with ``stack``, ``model``, ``layout`` and ``dt``.
         rank_tol: The solver's rank tolerance.
         warm_start: The solver's active-set warm start from the previous step.
+        core: The extension module to build the step from (default ``hqp._core._ext``; the
+            no-allocation test passes ``hqp._core._ext_checked``).
 
     Raises:
         NotSupported: A task without a kernel, or a stack that is not steady.
@@ -75,8 +77,8 @@ class NativeStepMirror:
     """
 
     def __init__(self, robot: Robot, controller: Any, rank_tol: float = 1e-9,
-                 warm_start: bool = True) -> None:
-        core = _core_ext
+                 warm_start: bool = True, core: Any = None) -> None:
+        core = _core_ext if core is None else core
         stack, model, layout = controller.stack, controller.model, controller.layout
         self.dt = float(controller.dt)
         self.model = model
@@ -217,6 +219,20 @@ class NativeStepMirror:
         self.step_core.step(q, v, self.dt)
         return self.step_core.x, self.step_core.tau
 
+    def record_errors(self) -> None:
+        """Give each task the error of the last native step (what ``Task.error()`` returns).
+
+        From its kernel; for a contact and the joint limits, from the Python model at the
+        state (logs and behaviors read them).
+        """
+        core = self.step_core
+        for handle, task, _orientation in self._goals:
+            e, rate = core.kernel_error(handle)
+            task.record_error(rate if isinstance(task, CentroidalMomentumTask) else e)
+        for task in self.stack.tasks:
+            if isinstance(task, (Contact, JointLimits)):
+                task.record_error(self.model)
+
     def report(self, diagnostics: Diagnostics) -> tuple[tuple[TaskStatus, ...],
                                                      tuple[float, ...], BuiltStack | None]:
         """Return the last step's task statuses, level costs and (full mode) built levels.
@@ -301,6 +317,12 @@ def _parameters(task: Any) -> tuple[Any, ...]:
     out: tuple[Any, ...] = (id(task), task.weight)
     if isinstance(task, Contact):
         out += (task.mu, task.f_min, task.max_normal_force, task.kp, task.kd)
+    elif isinstance(task, TorqueLimits):
+        tau = None if task.tau_max is None else np.asarray(task.tau_max, dtype=float).tobytes()
+        out += (tau, getattr(task, "scale", None))
+    elif isinstance(task, JointLimits):
+        out += (task.position_margin, task.velocity_scale, task.reserve, task.velocity_time,
+                task.inactive_beyond, task.acceleration_bounds, task.qdd_max is None)
     reference = getattr(task, "reference", None)
     if reference is not None and hasattr(reference, "kp"):
         out += _gains(task)

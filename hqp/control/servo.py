@@ -427,6 +427,7 @@ class WholeBodyController(Controller):
             x, tau = mirror.step(q, v, t)
         except RuntimeError:
             return None
+        mirror.record_errors()
         t3 = clock()
         self.native.steps += 1
         notes: list[str] = []

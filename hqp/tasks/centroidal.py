@@ -174,5 +174,9 @@ class CentroidalMomentumTask(Task):
         return Rows(A=A, b=a - drift)
 
     def error(self) -> np.ndarray:
-        """``h_goal - S h`` at the last :meth:`rows` (empty before)."""
+        """``h_goal - S h`` at the last step (empty before)."""
         return np.zeros(0) if self._last is None else -self._last
+
+    def record_error(self, e: np.ndarray) -> None:
+        """Record ``S h - h_goal`` of a step whose rows were computed elsewhere (native)."""
+        self._last = np.array(e, dtype=float)

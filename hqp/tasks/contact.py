@@ -272,18 +272,27 @@ class Contact(Task):
         if self.kd > 0.0:
             b -= self.kd * model.frame_velocity(self.frame)[:k]
         if self.kp > 0.0:
-            T = model.frame_placement(self.frame)
             if self.reference is None:
-                self.reference = T.copy()
-            e = np.concatenate(
-                [T.translation - self.reference.translation,
-                 pin.log3(T.rotation @ self.reference.rotation.T)]
-            )[:k]
+                self.reference = model.frame_placement(self.frame).copy()
+            e = self._pose_error(model)
             self._error = -e
             b -= self.kp * e
         else:
             self._error = np.zeros(0)
         return Rows(A=A, b=b)
+
+    def _pose_error(self, model: RobotModel) -> np.ndarray:
+        """``e`` of the stabilisation: the frame's pose minus its reference ``(size,)``."""
+        T = model.frame_placement(self.frame)
+        return np.concatenate(
+            [T.translation - self.reference.translation,
+             pin.log3(T.rotation @ self.reference.rotation.T)]
+        )[: self.kind.value]
+
+    def record_error(self, model: RobotModel) -> None:
+        """Set :meth:`error` at ``model``'s state for a step whose rows were computed elsewhere."""
+        active = self.active and self.kp > 0.0 and self.reference is not None
+        self._error = -self._pose_error(model) if active else np.zeros(0)
 
     def rotation(self, model: RobotModel) -> np.ndarray:
         """Rotation ``R_world_contact`` ``(3, 3)`` of the contact frame."""

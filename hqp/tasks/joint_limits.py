@@ -497,7 +497,7 @@ class JointLimits(Task):
             ub = np.where(crossed, brake, ub)
         ub = np.where(ub > self.inactive_beyond, np.inf, ub)
         lb = np.where(lb < -self.inactive_beyond, -np.inf, lb)
-        self._violation = np.maximum(q - model.q_upper, 0.0) + np.maximum(model.q_lower - q, 0.0)
+        self.record_error(model)
         return lb, ub
 
     def rows(self, model: RobotModel, layout: Layout, dt: float, t: float) -> Rows:
@@ -510,3 +510,8 @@ class JointLimits(Task):
     def error(self) -> np.ndarray:
         """Excursion past the position limits ``(na,)`` at the last call (0 inside)."""
         return self._violation
+
+    def record_error(self, model: RobotModel) -> None:
+        """Set :meth:`error` at ``model``'s state (also after a native step, which has no rows)."""
+        q = model.q[model.actuated_q]
+        self._violation = np.maximum(q - model.q_upper, 0.0) + np.maximum(model.q_lower - q, 0.0)

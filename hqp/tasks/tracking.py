@@ -146,6 +146,7 @@ class TrackingTask(Task):
         self._trajectory: Trajectory | None = None
         self._last: TaskKinematics | None = None
         self._last_reference: np.ndarray = np.zeros(0)
+        self._recorded: np.ndarray | None = None  # e of a step computed elsewhere
 
     # -- gains ----------------------------------------------------------------------------------
 
@@ -274,11 +275,22 @@ class TrackingTask(Task):
         A[:, :nv] = kin.jacobian
         self._last = kin
         self._last_reference = a
+        self._recorded = None
         return Rows(A=A, b=a - kin.drift)
 
     def error(self) -> np.ndarray:
-        """``-e`` (goal minus current, in the task's coordinates) at the last :meth:`rows`."""
+        """``-e`` (goal minus current, in the task's coordinates) at the last step."""
+        if self._recorded is not None:
+            return -self._recorded
         return np.zeros(0) if self._last is None else -self._last.error
+
+    def record_error(self, e: np.ndarray) -> None:
+        """Record ``e`` (current minus goal) of a step whose rows were computed elsewhere.
+
+        The native step computes the task's rows in its kernel; this keeps :meth:`error`
+        that of the last step until the next :meth:`rows`.
+        """
+        self._recorded = np.array(e, dtype=float)
 
     def reference_acceleration(self) -> np.ndarray:
         """Return the feedback acceleration ``a_fb`` of the last :meth:`rows` (empty before)."""

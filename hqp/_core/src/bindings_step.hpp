@@ -15,6 +15,7 @@
 
 #include "bindings_tasks.hpp"
 #include "control/step.hpp"
+#include "solver/linalg.hpp"
 
 namespace hqp {
 
@@ -82,10 +83,24 @@ inline void bind_step(nb::module_& m) {
           "contact", [](NativeStep& s, int handle) -> ContactKernel& { return s.contact(handle); },
           nb::rv_policy::reference_internal, nb::arg("handle"),
           "The contact kernel of a handle (activate/deactivate it between steps).")
+      .def(
+          "kernel_error",
+          [](NativeStep& s, int handle) {
+            if (handle >= 0 && handle < s.entry_count() &&
+                s.entry_kind(handle) == NativeStep::Kind::kOrientation) {
+              return nb::make_tuple(Eigen::VectorXd(s.orientation(handle).error()),
+                                    Eigen::VectorXd::Zero(3).eval());
+            }
+            const VectorTracking& t = s.tracking(handle);
+            return nb::make_tuple(Eigen::VectorXd(t.error()), Eigen::VectorXd(t.rate()));
+          },
+          nb::arg("handle"),
+          "(e, de/dt) of a tracking or orientation kernel at the last step (e = current - goal).")
       .def("set_braking", &NativeStep::set_braking, nb::arg("handle"), nb::arg("braking"))
       .def(
           "step",
-          [](NativeStep& s, const Eigen::VectorXd& q, const Eigen::VectorXd& v, double dt) {
+          [](NativeStep& s, const Eigen::VectorXd& q, const Eigen::VectorXd& v, double dt,
+             bool forbid_malloc) {
             if (q.size() != s.robot().nq() || v.size() != s.robot().nv())
               throw std::invalid_argument("state shapes: expected (" +
                                           std::to_string(s.robot().nq()) + "), (" +
@@ -94,12 +109,28 @@ inline void bind_step(nb::module_& m) {
             std::string error;
             {
               nb::gil_scoped_release release;
+#ifdef HQP_CHECK_MALLOC
+              AssertionLog& log = assertion_log();
+              log.count = 0;
+              log.first.clear();
+              set_malloc_allowed(!forbid_malloc);
               error = s.step(q, v, dt);
+              set_malloc_allowed(true);
+              if (log.count) {
+                error = "eigen assertion (" + std::to_string(log.count) + " in this step): " +
+                        log.first;
+              }
+#else
+              (void)forbid_malloc;
+              error = s.step(q, v, dt);
+#endif
             }
             if (!error.empty()) throw std::runtime_error(error);
           },
-          nb::arg("q"), nb::arg("v"), nb::arg("dt"),
-          "One control step (GIL released): model pass, rows, strict hierarchy, torques.")
+          nb::arg("q"), nb::arg("v"), nb::arg("dt"), nb::arg("forbid_malloc") = false,
+          "One control step (GIL released): model pass, rows, strict hierarchy, torques. "
+          "forbid_malloc: in the checked module, a heap allocation inside the step is an "
+          "error (elsewhere ignored).")
       .def_prop_ro("x", [](const NativeStep& s) { return Eigen::VectorXd(s.x()); })
       .def_prop_ro("tau", [](const NativeStep& s) { return Eigen::VectorXd(s.tau()); })
       .def_prop_ro("qp_count", [](const NativeStep& s) { return s.hierarchy().qp_count(); })

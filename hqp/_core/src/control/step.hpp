@@ -68,6 +68,7 @@ class NativeStep {
     double sqrt_w;
   };
   int entry_count() const { return int(entries_.size()); }
+  Kind entry_kind(int handle) const { return entries_[std::size_t(handle)].kind; }
   EntryInfo entry(int handle) const;
   /// Unweighted residual norm of each kernel's rows at the last step's x (equality residual
   /// and inequality violation stacked), in handle order; filled by step() without allocating.

@@ -41,6 +41,8 @@ class VectorTracking {
              Eigen::Ref<Eigen::VectorXd> b);
 
   const Eigen::VectorXd& error() const { return e_; }
+  /// de/dt at the last write (the momentum error of the centroidal kind, whose e is zero).
+  const Eigen::VectorXd& rate() const { return rate_; }
   const Eigen::VectorXd& reference_acceleration() const { return a_; }
 
  private:
