@@ -171,3 +171,20 @@ def test_native_needs_a_bundled_robot_model():
     assert WholeBodyController(model).native is None  # the Python step, silently
     with pytest.raises(InvalidInput, match="native=True"):
         WholeBodyController(model, native=True)
+
+
+def test_a_task_written_in_python_runs_on_the_python_path():
+    """The example of docs/control.md ("The native step"), run as written."""
+    import re
+    from pathlib import Path
+
+    text = Path(__file__).resolve().parents[1].joinpath("docs", "control.md").read_text()
+    block = re.search(r"A task of your own.*?```python\n(.*?)```", text, re.S)
+    assert block is not None
+    scope: dict = {}
+    exec(compile(block.group(1), "docs/control.md", "exec"), scope)  # noqa: S102
+    controller = scope["controller"]
+    assert "no native kernel" in controller.native.unsupported
+    assert controller.native.steps == 0
+    status = {s.name: s for s in controller.last_built.spans}
+    assert "joint_damping" in status
