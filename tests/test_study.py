@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import json
 import shlex
+import subprocess
+import sys
 
 import pytest
 
@@ -214,3 +216,15 @@ def test_errors_and_timeouts_are_records() -> None:
     slow = run_simulation({"controller": "nullspace", "duration": 5.0}, timeout=1e-3)
     assert slow["status"] == "timeout" and "timeout of 0.001 s" in slow["error"]
     assert slow["timing"]["wall_s"] < 60.0  # stopped at its first check, not after 5 s of physics
+
+
+def test_a_step_that_never_returns_ends_its_process() -> None:
+    """The backstop of a simulation stuck where its timeout is never checked."""
+    code = ("import time\nimport hqp.study.simulation as s\ns.HARD_TIMEOUT_GRACE = 0.5\n"
+            "s.measure = lambda params, timeout: time.sleep(600)\n"
+            "s.run_simulation({'controller': 'hqp'}, timeout=0.2)\n")
+    # ends long before the sleep (or subprocess.run raises TimeoutExpired)
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=300)
+    assert done.returncode != 0 and done.stderr.startswith("Timeout")
+    assert "<lambda>" in done.stderr and "in run_simulation" in done.stderr  # where it hung

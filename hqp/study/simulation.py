@@ -26,6 +26,7 @@ longer than its wall-clock timeout, become a record (``status`` ``"error"`` or
 
 from __future__ import annotations
 
+import faulthandler
 import inspect
 import json
 import math
@@ -75,6 +76,21 @@ STANDING_METRICS = ("fell", "fell_at_s", "diverged", "duration_s", "min_support_
                     "clip_count", "safe_mode_steps", "max_torque_jump_nm")
 """Metrics of a standing simulation (:meth:`hqp.sim.Log.summary`; ``diverged``: MuJoCo reset
 its state, counted as a fall)."""
+
+
+HARD_TIMEOUT_GRACE = 30.0
+"""Seconds past twice its timeout after which a simulation's process ends (:func:`hard_timeout`)."""
+
+
+def hard_timeout(timeout: float) -> float:
+    """Return when a simulation that never reaches its timeout's check is ended [s].
+
+    The timeout is checked every 100 control steps; a step that never returns (a solver
+    that does not stop) is ended with its process, its traceback on stderr
+    (:func:`faulthandler.dump_traceback_later`): on Ray, the worker's log, and the record
+    says the worker died.
+    """
+    return 2.0 * timeout + HARD_TIMEOUT_GRACE
 
 
 class SimulationTimeout(HQPError):
@@ -279,6 +295,8 @@ def run_simulation(params: Mapping[str, Any], timeout: float = 0.0,
     start = time.perf_counter()
     record: dict[str, Any] = {"id": simulation_id(params), "params": dict(params),
                               "status": "ok", "metrics": {}, "timing": {}, "error": None}
+    if timeout > 0.0:  # the backstop of a step that never returns to the timeout's check
+        faulthandler.dump_traceback_later(hard_timeout(timeout), exit=True)
     try:
         figures = measure(params, timeout)
     except SimulationTimeout as exc:
@@ -291,6 +309,8 @@ def run_simulation(params: Mapping[str, Any], timeout: float = 0.0,
         record["timing"] = {k: _clean(figures.pop(k)) for k in TIMING if k in figures}
         record["metrics"] = {k: _clean(v) for k, v in figures.items()
                              if not metrics or k in metrics}
+    finally:
+        faulthandler.cancel_dump_traceback_later()
     record["timing"]["wall_s"] = round(time.perf_counter() - start, 3)
     record["worker"] = f"{socket.gethostname()}:{os.getpid()}"
     record["command"] = rerun_command(params)
