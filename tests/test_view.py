@@ -131,7 +131,7 @@ def test_page_in_headless_chromium(tmp_path):
         pytest.skip("no chromium on this machine (apt-get install chromium, as .ci/run "
                     "does): the browser half does not run; the server-side tests above do")
     port = measure.free_port()
-    proc = measure.start_view(port, tmp_path / "rec")
+    proc = measure.start_view(port, tmp_path / "view.log", tmp_path / "rec")
     try:
         with measure.sync_playwright() as p:
             browser = measure.launch(p, exe)
@@ -140,12 +140,10 @@ def test_page_in_headless_chromium(tmp_path):
             goal = [float(f.input_value()) for f in fields]
             assert goal == pytest.approx([0.55, -0.22, 1.10])  # the behavior's default
             # drag the red sphere's vertical arrow up with the mouse (seed 001, Figure 14)
-            measure.drag_goal_up(page, goal, 60, 1280, 800)
-            page.wait_for_function(
-                "([id, z]) => parseFloat(document.querySelector(`[data-hqp='${id}']`).value) > z",
-                arg=["hand_goal (hand)2", goal[2] + 0.05], timeout=60000)
-            dragged = [float(f.input_value()) for f in fields]
+            _, dragged = measure.drag_goal(page, 60, 1280, 800)
+            assert dragged[2] > goal[2] + 0.03
             assert dragged[:2] == pytest.approx(goal[:2], abs=1e-3)  # the z arrow only
+            fields = measure.vector_inputs(page, measure.HAND_GOAL)
             # then a goal typed in the page's own goal field
             new = [goal[0], goal[1] + 0.1, dragged[2]]
             measure.set_vector(fields[1:2], new[1:2])
@@ -159,7 +157,9 @@ def test_page_in_headless_chromium(tmp_path):
             assert d1 < d0 - 0.05, (d0, d1)
             table = page.locator("table").first.inner_text()
             assert re.search(r"4\s+balance\s+ok", table), table
-            assert re.search(r"hand\s+ok", table), table
+            # the hand is met, or traded within its own level (trunk, gaze): never against
+            # the balance above it
+            assert re.search(r"5\s+hand\s+(ok|CONFLICT → 5)\s", table), table
             assert re.search(r"posture\s+CONFLICT → \d", table), table
             browser.close()
         assert (tmp_path / "view.png").stat().st_size > 10000
@@ -169,10 +169,10 @@ def test_page_in_headless_chromium(tmp_path):
         assert second.returncode == 2 and "in use" in second.stderr, second.stderr
     finally:
         rc = measure.stop_view(proc)  # Ctrl-C
-    assert rc == 0
+    assert rc == 0, (tmp_path / "view.log").read_text()
     record = json.loads((tmp_path / "rec" / "run.json").read_text())
     reach = record["runs"][1]
     assert reach["behavior"] == "reach"
     goals = [a["value"] for a in reach["actions"] if a["action"] == "goal"]
-    assert any(g[2] > goal[2] + 0.05 and g[1] == pytest.approx(goal[1]) for g in goals)
+    assert any(g[2] > goal[2] + 0.03 and g[1] == pytest.approx(goal[1]) for g in goals)
     assert goals[-1] == pytest.approx(new, abs=0.006)  # the field shows 2 decimals

@@ -31,9 +31,14 @@ import numpy as np
 from hqp.app.view.page import CAMERA_FOV_DEG, CAMERA_LOOK_AT, CAMERA_POSITION, GOAL_HANDLE_SCALE
 
 try:  # test extra only: `pip install playwright`, and a chromium from the system
+    from playwright.sync_api import TimeoutError as PageTimeout
     from playwright.sync_api import sync_playwright
 except ImportError:  # pragma: no cover - depends on the environment
     sync_playwright = None
+    PageTimeout = TimeoutError
+
+HAND_GOAL = "hand_goal (hand)"
+"""Label of the reach behavior's goal field in the page."""
 
 CHROMIUM_CANDIDATES = ("chromium", "chromium-browser", "google-chrome")
 CHROMIUM_ARGS = ("--use-angle=swiftshader", "--enable-unsafe-swiftshader", "--no-sandbox")
@@ -64,9 +69,12 @@ def free_port() -> int:
         return int(s.getsockname()[1])
 
 
-def start_view(port: int, record: Path | None, behavior: str = "stand",
+def start_view(port: int, log: Path, record: Path | None = None, behavior: str = "stand",
                robot: str | None = None, timeout: float = 180.0) -> subprocess.Popen:
-    """Start ``hqp view BEHAVIOR --no-browser`` as a process; return once it serves."""
+    """Start ``hqp view BEHAVIOR --no-browser`` as a process; return once it serves.
+
+    Its stderr goes to the file ``log`` (a pipe left unread would fill and block it).
+    """
     env = dict(os.environ, OMP_NUM_THREADS="1", PYTHONUNBUFFERED="1")
     cmd = [sys.executable, "-m", "hqp.app.cli", "view", behavior, "--no-browser",
            "--port", str(port)]
@@ -74,18 +82,16 @@ def start_view(port: int, record: Path | None, behavior: str = "stand",
         cmd += ["--record", str(record)]
     if robot is not None:
         cmd += ["--robot", robot]
-    proc = subprocess.Popen(cmd, stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True,
-                            env=env)
-    assert proc.stderr is not None
+    log.parent.mkdir(parents=True, exist_ok=True)
+    with log.open("w") as err:
+        proc = subprocess.Popen(cmd, stderr=err, stdout=subprocess.DEVNULL, env=env)
     deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        line = proc.stderr.readline()
-        if "Ctrl-C stops" in line:
+    while time.monotonic() < deadline and proc.poll() is None:
+        if "Ctrl-C stops" in log.read_text():
             return proc
-        if not line and proc.poll() is not None:
-            break
+        time.sleep(0.2)
     proc.kill()
-    raise RuntimeError(f"hqp view did not start: {' '.join(cmd)}")
+    raise RuntimeError(f"hqp view did not start: {' '.join(cmd)}\n{log.read_text()}")
 
 
 def stop_view(proc: subprocess.Popen, timeout: float = 60.0) -> int:
@@ -159,6 +165,35 @@ def drag_goal_up(page: Any, goal: Any, pixels: float, width: int, height: int,
     page.mouse.up()
 
 
+def drag_goal(page: Any, pixels: float, width: int, height: int, attempts: int = 3,
+              timeout_ms: float = 60000) -> tuple[list[float], list[float]]:
+    """Drag the hand goal's vertical arrow by ``pixels``; return the goal before and after.
+
+    A drag that misses the arrow turns the camera instead; the page is then reloaded (the
+    camera back to its start) and the drag tried again, ``attempts`` times in all.
+
+    Raises:
+        RuntimeError: No drag moved the goal (by 3 cm at least, in the dragged direction).
+
+    """
+    sign = 1.0 if pixels > 0 else -1.0
+    for _ in range(attempts):
+        before = [float(f.input_value()) for f in vector_inputs(page, HAND_GOAL)]
+        drag_goal_up(page, before, pixels, width, height)
+        try:
+            page.wait_for_function(
+                "([id, z, s]) => s * (parseFloat("
+                "document.querySelector(`[data-hqp='${id}']`).value) - z) > 0.03",
+                arg=[f"{HAND_GOAL}2", before[2], sign], timeout=timeout_ms)
+        except PageTimeout:
+            page.reload()
+            page.get_by_text(re.compile(r"hand: [0-9.]+ m from hand_goal")).wait_for(
+                timeout=timeout_ms)
+            continue
+        return before, [float(f.input_value()) for f in vector_inputs(page, HAND_GOAL)]
+    raise RuntimeError(f"{attempts} drags of the hand goal's arrow did not move it")
+
+
 def page_number(page: Any, pattern: str) -> float:
     """Return the first number captured by ``pattern`` in the page's text."""
     match = re.search(pattern, page.inner_text("body"))
@@ -178,7 +213,7 @@ def open_reach(page: Any, url: str, timeout_ms: float = 180000) -> list[Any]:
     page.get_by_role("button", name="reach").click(timeout=timeout_ms)
     page.get_by_text(re.compile(r"reach · phase reach")).wait_for(timeout=timeout_ms)
     page.get_by_text(re.compile(r"hand: [0-9.]+ m from hand_goal")).wait_for(timeout=timeout_ms)
-    return vector_inputs(page, "hand_goal (hand)")
+    return vector_inputs(page, HAND_GOAL)
 
 
 def measure(robot: str | None, seconds: float, screenshot: Path | None,
@@ -191,26 +226,31 @@ def measure(robot: str | None, seconds: float, screenshot: Path | None,
         raise RuntimeError("needs a system chromium (apt-get install chromium)")
     port = free_port()
     with tempfile.TemporaryDirectory() as tmp:
-        proc = start_view(port, Path(tmp), behavior="stand", robot=robot)
+        log = Path(tmp) / "view.log"
+        proc = start_view(port, log, Path(tmp), behavior="stand", robot=robot)
         try:
             with sync_playwright() as p:
                 browser = launch(p, exe)
                 page = browser.new_page(viewport={"width": width, "height": height})
-                fields = open_reach(page, f"http://127.0.0.1:{port}")
+                open_reach(page, f"http://127.0.0.1:{port}")
                 rtf, ups = [], []
-                page.evaluate(FPS_SCRIPT)
                 t0 = time.monotonic()
-                k = moved = 0
+                k = moved = frames = 0
+                page.evaluate(FPS_SCRIPT)
                 while time.monotonic() - t0 < seconds:
-                    before = [float(f.input_value()) for f in fields]
-                    drag_goal_up(page, before, DRAG_PIXELS * (1 if k % 2 == 0 else -1),
-                                 width, height)
-                    page.wait_for_timeout(500)
-                    moved += abs(float(fields[2].input_value()) - before[2]) > 0.01
+                    # frames since the counter was (re)installed: a reload loses that count
+                    frames += page.evaluate("() => window.hqpFrames || 0")
+                    page.evaluate(FPS_SCRIPT)
+                    try:
+                        drag_goal(page, DRAG_PIXELS * (1 if k % 2 == 0 else -1), width, height,
+                                  attempts=1)
+                        moved += 1
+                    except RuntimeError:
+                        pass  # missed: the page was reloaded, the camera is back
                     k += 1
                     rtf.append(page_number(page, r"real-time factor ([0-9.]+)"))
                     ups.append(page_number(page, r"([0-9.]+) scene updates/s"))
-                frames = page.evaluate("() => window.hqpFrames")
+                frames += page.evaluate("() => window.hqpFrames || 0")
                 elapsed = time.monotonic() - t0
                 if screenshot is not None:  # tall enough for the task panel and the charts
                     close = page.locator("button.mantine-Notification-closeButton")
@@ -225,6 +265,8 @@ def measure(robot: str | None, seconds: float, screenshot: Path | None,
         finally:
             rc = stop_view(proc)
         record = json.loads((Path(tmp) / "run.json").read_text())
+        problems = [line for line in log.read_text().splitlines()
+                    if "error" in line.lower() or "stopped:" in line]
     reach = record["runs"][-1]
 
     def median(xs: list[float]) -> float | None:
@@ -238,6 +280,7 @@ def measure(robot: str | None, seconds: float, screenshot: Path | None,
             "loop_realtime_factor": reach["realtime_factor"],
             "step_time_median_ms": reach["step_time_median_ms"],
             "hand_distance_at_end_m": distance, "fell": reach["fell"], "exit_status": rc,
+            "viewer_errors": problems,
             "screenshot": None if screenshot is None else str(screenshot)}
 
 
