@@ -71,17 +71,21 @@ def plot_push_map(summary: dict[str, Any], path: str | Path, title: str = "") ->
                         np.append(fallen, fallen[:1]), color=line.get_color(), alpha=0.15,
                         lw=0, label=f"{controller}: up to the smallest push that felled it")
         failed = [r for r in mine if r["status"] == "failed"]
-        if failed:
-            ax.plot(np.radians([r["angle_deg"] for r in failed]), [0.0] * len(failed), "x",
-                    color=line.get_color(), ms=9, label=f"{controller}: a simulation failed")
+        if failed:  # on the outer ring, where it shows
+            edge = float(np.nanmax(np.concatenate([fallen, survived, [1.0]])))
+            ax.plot(np.radians([r["angle_deg"] for r in failed]), [edge] * len(failed), "X",
+                    color=line.get_color(), ms=10, ls="none",
+                    label=f"{controller}: a simulation failed (no result)")
     ax.set_theta_zero_location("N")  # forward (+x) up, left (+y) to the left
     ax.set_theta_direction(1)
     ax.set_xticks(np.radians(np.arange(0, 360, 45)),
                   ["0° forward", "45°", "90° left", "135°", "180° back", "225°", "270° right",
                    "315°"])
     ax.set_rlabel_position(200)
-    ax.set_title(title or "Largest push survived [N] by direction "
-                 f"(push of {summary.get('push_duration_s', 0.1):g} s)", pad=18)
+    search = summary.get("definition", {}).get("push", {})
+    detail = (f", bisection to {search['tolerance']:g} N" if "tolerance" in search else "")
+    ax.set_title(title or "Largest push survived [N] by direction\n"
+                 f"(push of {summary.get('push_duration_s', 0.1):g} s{detail})", pad=18)
     ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.06), ncol=1, fontsize=8,
               frameon=False)
     fig.tight_layout()
