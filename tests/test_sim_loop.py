@@ -62,6 +62,23 @@ def test_realtime_factor_is_simulated_over_wall_time(robot):
     assert out.realtime_factor == pytest.approx(out.t_end / out.wall_time)
 
 
+def test_a_simulation_mujoco_resets_ends_as_a_failure(robot):
+    """MuJoCo resets a diverging simulation (time back to 0): the loop reports it, stops."""
+    sim = Simulator(robot)
+    real_step = sim.step
+    count = [0]
+
+    def diverging(tau, force=None):
+        real_step(tau, force)
+        count[0] += 1
+        if count[0] == 5:
+            sim.mj_data.time = 0.0  # what mj_step does after a bad acceleration
+
+    sim.step = diverging
+    out = closed_loop(sim, Recorder(sim.na), 0.02)
+    assert out.fell and "diverged" in out.fall_reason and out.steps == 5
+
+
 def test_events_run_once_at_their_time_and_pushes_add_up(robot):
     sim = Simulator(robot)
     fired = []

@@ -254,6 +254,7 @@ def closed_loop(
         step = Step(k, t, state, reading, command, time.perf_counter() - w0)
         if before_step is not None:
             before_step(step)
+        before = sim.time
         sim.step(command.tau, push_force(pushes, t))
         reading = sim.contacts()
         outcome.steps = k + 1
@@ -261,7 +262,10 @@ def closed_loop(
         if after_step is not None:
             after_step(step, reading)
         outcome.wall_time = time.perf_counter() - loop_start
-        reason = sim.fall_reason(reading)
+        # MuJoCo resets a diverging simulation (state and time back to the start): the run
+        # has failed there, not started again
+        reason = ("the simulation diverged (MuJoCo reset its state)" if sim.time < before
+                  else sim.fall_reason(reading))
         if reason is not None and outcome.fell_at is None:
             outcome.fell_at, outcome.fall_reason = t, reason
             logger.info("t=%.3f: fell (%s)", t, reason)

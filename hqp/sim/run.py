@@ -56,6 +56,7 @@ class Log:
         events: ``(t, name)`` of the events applied.
         standing_height: Base height of the robot's standing configuration [m].
         fell_at: Time of the first fall (``None`` if it did not fall).
+        fall_reason: Why it fell (``Simulator.fall_reason``, or a diverged simulation).
         wall_time: Wall-clock duration of the closed loop [s] (controller, MuJoCo, logging).
 
     """
@@ -83,6 +84,7 @@ class Log:
     events: list[tuple[float, str]] = field(default_factory=list)
     standing_height: float = 0.0
     fell_at: float | None = None
+    fall_reason: str | None = None
     wall_time: float = 0.0
 
     @property
@@ -230,7 +232,8 @@ class _Recorder:
             strictness_suspended=arr("susp", ()).astype(bool),
             clipped=np.array(clipped, dtype=int), step_time=arr("time", ()),
             events=outcome.events, standing_height=robot.standing_height,
-            fell_at=outcome.fell_at, wall_time=outcome.wall_time,
+            fell_at=outcome.fell_at, fall_reason=outcome.fall_reason,
+            wall_time=outcome.wall_time,
         )
 
 
