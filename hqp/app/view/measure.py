@@ -266,7 +266,7 @@ def measure(robot: str | None, seconds: float, screenshot: Path | None,
             rc = stop_view(proc)
         record = json.loads((Path(tmp) / "run.json").read_text())
         problems = [line for line in log.read_text().splitlines()
-                    if "error" in line.lower() or "stopped:" in line]
+                    if line.startswith(("ERROR", "Traceback", "hqp view: the simulation"))]
     reach = record["runs"][-1]
 
     def median(xs: list[float]) -> float | None:
