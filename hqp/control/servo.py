@@ -322,7 +322,7 @@ class WholeBodyController(Controller):
         if q.shape != (self.model.nq,):
             return q  # the model's update names the shapes
         norm = float(np.sqrt(q[3:7].dot(q[3:7])))
-        if norm == 1.0:
+        if abs(norm - 1.0) <= 1e-12:  # unit to rounding (a simulator's): left bit for bit
             return q
         if not abs(norm - 1.0) <= QUATERNION_TOLERANCE:
             raise InvalidInput(f"WholeBodyController.step: the base quaternion q[3:7] has norm "
