@@ -188,3 +188,17 @@ def test_a_task_written_in_python_runs_on_the_python_path():
     assert controller.native.steps == 0
     status = {s.name: s for s in controller.last_built.spans}
     assert "joint_damping" in status
+
+
+def test_the_contact_force_regularisation_runs_natively():
+    """ForceRegularization (constant rows of the layout, walk's lowest level) on the native
+    step: the same command and report as the Python step."""
+    from hqp.tasks.effort import ForceRegularization
+
+    robot, nat, py = _pair("talos")
+    for ctrl in (nat, py):
+        ctrl.add_task(ForceRegularization(ctrl.model, weight=1e-3), "posture", ramp_time=0.0)
+    for t, state in _states(robot, nat.model, 8, seed=12):
+        _same_command(nat.step(state, t), py.step(state, t), f"t={t}")
+        _same_errors(nat, py, f"t={t}")
+    assert nat.native.unsupported is None and nat.native.steps >= 7

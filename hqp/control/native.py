@@ -8,7 +8,8 @@ interface and the test oracle (``tests/test_core_step.py`` holds the two equal).
 
 Supported today: the standing set (floating-base dynamics, contacts and their limits,
 torque limits, viable joint limits with a fixed or support-dependent braking, CoG,
-centroidal momentum, orientation, position and posture tasks) with goals and trajectories,
+centroidal momentum, orientation, position and posture tasks, the contact-force
+regularisation) with goals and trajectories,
 contacts made and released, in a steady stack (no task ramping in, no contact unloading, no
 torque blend; :meth:`hqp.stack.Stack.steady`). Anything else raises :class:`NotSupported`
 (a task without a kernel) or is left to the Python step for that step (a stack that is not
@@ -40,6 +41,7 @@ from hqp.tasks.centroidal import CentroidalMomentumTask
 from hqp.tasks.com import CoMTask
 from hqp.tasks.contact import Contact, ContactLimits
 from hqp.tasks.dynamics import FloatingBaseDynamics
+from hqp.tasks.effort import ForceRegularization
 from hqp.tasks.joint_limits import JointLimits
 from hqp.tasks.orientation import OrientationTask
 from hqp.tasks.position import PositionTask
@@ -141,6 +143,10 @@ class NativeStepMirror:
         elif isinstance(task, (PositionTask, CoMTask, PostureTask, CentroidalMomentumTask)):
             handle = s.add_tracking(level, w, self._tracking_kernel(core, task))
             self._goals.append((handle, task, False))
+        elif isinstance(task, ForceRegularization):  # rows of the layout alone
+            rows = task.rows(model, self._layout, self.dt, 0.0)
+            s.add_constant(level, w, np.asarray(rows.A, dtype=float),
+                           np.asarray(rows.b, dtype=float))
         else:
             raise NotSupported(f"{task.where()}: no native kernel for {type(task).__name__}")
 

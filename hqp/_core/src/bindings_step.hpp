@@ -69,6 +69,8 @@ inline void bind_step(nb::module_& m) {
            nb::arg("kernel"))
       .def("add_orientation", &NativeStep::add_orientation, nb::arg("level"), nb::arg("weight"),
            nb::arg("kernel"))
+      .def("add_constant", &NativeStep::add_constant, nb::arg("level"), nb::arg("weight"),
+           nb::arg("A"), nb::arg("b"))
       .def(
           "set_goal",
           [](NativeStep& s, int handle, const Eigen::VectorXd& p, const Eigen::VectorXd& v,

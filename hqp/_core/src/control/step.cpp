@@ -74,6 +74,14 @@ int NativeStep::add_orientation(int level, double weight, const OrientationTrack
   return add(Kind::kOrientation, level, weight, int(orientation_.size()) - 1, 3, 0);
 }
 
+int NativeStep::add_constant(int level, double weight, const Eigen::MatrixXd& A,
+                             const Eigen::VectorXd& b) {
+  if (A.cols() != n_ || A.rows() != b.size())
+    throw std::invalid_argument("constant rows: A must be (rows, n) and b (rows,)");
+  constants_.emplace_back(A, b);
+  return add(Kind::kConstant, level, weight, int(constants_.size()) - 1, A.rows(), 0);
+}
+
 VectorTracking& NativeStep::tracking(int handle) {
   if (handle < 0 || handle >= int(entries_.size()) || entries_[handle].kind != Kind::kTracking)
     throw std::invalid_argument("not a tracking handle");
@@ -242,6 +250,10 @@ std::string NativeStep::step(const Eigen::Ref<const Eigen::VectorXd>& q,
         break;
       case Kind::kOrientation:
         orientation_[std::size_t(e.index)].write(robot, A, b);
+        break;
+      case Kind::kConstant:
+        A = constants_[std::size_t(e.index)].first;
+        b = constants_[std::size_t(e.index)].second;
         break;
     }
     if (e.sqrt_w != 1.0) {

@@ -10,6 +10,7 @@
 
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "model/robot.hpp"
@@ -26,7 +27,7 @@ class NativeStep {
  public:
   using Index = Eigen::Index;
   enum class Kind { kDynamics, kTorqueLimits, kContact, kContactLimits, kJointLimits,
-                    kTracking, kOrientation };
+                    kTracking, kOrientation, kConstant };
 
   NativeStep(std::unique_ptr<RobotCore> robot, Index nv_base, LayoutC layout, int n_levels,
              const Settings& settings);
@@ -40,6 +41,9 @@ class NativeStep {
                        const Eigen::VectorXd& max_acceleration, const Eigen::VectorXd& braking);
   int add_tracking(int level, double weight, const VectorTracking& kernel);
   int add_orientation(int level, double weight, const OrientationTracking& kernel);
+  /// Equality rows that do not change with the state (A (rows, n), b (rows,)), e.g. the
+  /// contact-force regularisation.
+  int add_constant(int level, double weight, const Eigen::MatrixXd& A, const Eigen::VectorXd& b);
 
   VectorTracking& tracking(int handle);
   OrientationTracking& orientation(int handle);
@@ -108,6 +112,7 @@ class NativeStep {
   std::vector<OrientationTracking> orientation_;
   std::vector<JointLimitEntry> joint_limits_;
   std::vector<Eigen::VectorXd> tau_max_;
+  std::vector<std::pair<Eigen::MatrixXd, Eigen::VectorXd>> constants_;
   std::vector<int> used_;          // built level k -> stack level index
   std::vector<int> built_of_;      // stack level index -> built level (-1: empty)
   bool laid_out_ = false;
