@@ -228,7 +228,7 @@ def test_wrench_cone_equals_the_python_cone():
 @pytest.mark.parametrize("name", robots.NAMES)
 def test_joint_limit_bounds_equal_the_python_bounds(name):
     """Viable bounds at states inside, at and past the limits, slow and fast, for several
-    settings (acceleration bounds on/off, reserve, velocity time, margins)."""
+    settings (acceleration bounds on/off, reserve, velocity and approach times, margins)."""
     from hqp.tasks.joint_limits import JointLimits
 
     robot = robots.load(name)
@@ -240,6 +240,8 @@ def test_joint_limit_bounds_equal_the_python_bounds(name):
         dict(qdd_max=rng.uniform(5.0, 80.0, na), braking=rng.uniform(0.5, 5.0, na), reserve=4.0,
              velocity_time=0.05, position_margin=0.02, velocity_scale=0.8),
         dict(qdd_max=30.0, braking=2.0, acceleration_bounds=False, inactive_beyond=200.0),
+        dict(qdd_max=rng.uniform(5.0, 80.0, na), braking=rng.uniform(0.5, 5.0, na), reserve=2.0,
+             velocity_time=0.02, approach_time=0.02),
     ]
     for kwargs in settings:
         jl = JointLimits(**kwargs)
@@ -259,7 +261,7 @@ def test_joint_limit_bounds_equal_the_python_bounds(name):
                 py.q[py.actuated_q], py.v[py.actuated], lo + jl.position_margin,
                 hi - jl.position_margin, jl.velocity_scale * py.v_max, jl.max_acceleration(py),
                 jl.braking_deceleration(py), dt, jl.reserve, jl.velocity_time,
-                jl.inactive_beyond, jl.acceleration_bounds)
+                jl.inactive_beyond, jl.acceleration_bounds, jl.approach_time)
             for a, b in ((nlb, lb), (nub, ub)):
                 np.testing.assert_array_equal(np.isinf(a), np.isinf(b))
                 f = np.isfinite(b)

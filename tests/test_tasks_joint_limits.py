@@ -394,3 +394,39 @@ def test_support_braking_follows_the_active_contacts(humanoid: RobotModel) -> No
         SupportBraking(humanoid, [], 1.0, margin=0.0)
     with pytest.raises(HQPError, match="unknown frame 'sole'"):
         SupportBraking(humanoid, ["sole"], 1.0)
+
+
+def test_the_braking_curve_is_approached_without_an_acceleration_step(arm: RobotModel) -> None:
+    """``approach_time``: a joint taking its upper bound every step (semi-implicit Euler, as
+    MuJoCo) reaches its velocity limit (approached over ``T_a``), its braking curve and its
+    limit; without the approach its bound falls from
+    ``A_max`` to about ``-B`` in one step, with it by at most ``(A_max + B) dt / T_a`` per step
+    (plus the curve's own slope), and the joint still stops at the limit, not past it."""
+    A_max, B, T_a = 50.0, 12.5, 0.02
+    steps = {}
+    for approach in (0.0, T_a):
+        task = JointLimits(qdd_max=A_max, braking=B, reserve=2.0, velocity_time=T_a,
+                           approach_time=approach)
+        q, v = arm.neutral(), np.zeros(arm.nv)
+        q[0] = arm.q_upper[0] - 0.4
+        last, worst, peak = None, 0.0, -np.inf
+        for _ in range(1500):
+            arm.update(q, v)
+            lb, ub = task.bounds(arm, DT)
+            assert lb[0] <= ub[0]
+            if last is not None:
+                worst = max(worst, abs(ub[0] - last))
+            last = ub[0]
+            v = v + DT * np.where(np.arange(arm.nv) == 0, ub, 0.0)
+            q = q + DT * v
+            peak = max(peak, q[0])
+        assert peak <= arm.q_upper[0] + 1e-12
+        np.testing.assert_allclose(q[0], arm.q_upper[0], atol=1e-3)
+        steps[approach] = worst
+    assert steps[0.0] > 0.9 * (A_max + B)  # the discrete bound: one step from A_max to -B
+    assert steps[T_a] < 2.0 * (A_max + B) * DT / T_a, steps
+
+
+def test_approach_time_is_checked() -> None:
+    with pytest.raises(InvalidGain, match="approach_time"):
+        JointLimits(qdd_max=10.0, approach_time=-1.0)

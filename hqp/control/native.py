@@ -134,7 +134,7 @@ class NativeStepMirror:
                 model.q_upper - task.position_margin, task.velocity_scale * model.v_max,
                 task.reserve, task.velocity_time, task.inactive_beyond, task.acceleration_bounds,
                 np.asarray(task.max_acceleration(model), dtype=float),
-                np.asarray(task.braking_deceleration(model), dtype=float))
+                np.asarray(task.braking_deceleration(model), dtype=float), task.approach_time)
             self._braking.append((handle, task))
         elif isinstance(task, OrientationTask):
             handle = s.add_orientation(level, w, core.OrientationTracking(

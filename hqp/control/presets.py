@@ -77,16 +77,18 @@ def viable_joint_limits(robot: Robot, model: RobotModel,
     The bound on ``|qdd|`` is the fixed-base torque estimate clipped to
     ``[5, max_joint_acceleration]`` rad/s^2; the braking assumption is the smaller of half of
     it and what the supports allow (:class:`~hqp.tasks.joint_limits.SupportBraking`,
-    all-or-none); velocity bounds are approached over 20 ms. Why these choices (and what was
-    measured against the alternatives): docs/control.md, "The standing joint limits".
+    all-or-none); velocity bounds and the braking curve are approached over 20 ms. Why these
+    choices (and what was measured against the alternatives): docs/control.md, "The standing
+    joint limits".
     """
     qdd_max = np.clip(max_acceleration_from_torques(model, margin=0.5), 5.0,
                       max_joint_acceleration)
     braking = SupportBraking(model, [robot.contact(foot).frame for foot in robot.feet],
                              0.5 * qdd_max, margin=0.5, per_contact=False)
-    # Velocity bounds approached over 20 ms rather than in one step (no torque step when a
-    # joint reaches its velocity limit).
-    return JointLimits(qdd_max=qdd_max, braking=braking, reserve=2.0, velocity_time=0.02)
+    # Velocity bounds and the braking curve approached over 20 ms rather than in one step (no
+    # torque step when a joint reaches its velocity limit or its braking curve).
+    return JointLimits(qdd_max=qdd_max, braking=braking, reserve=2.0, velocity_time=0.02,
+                       approach_time=0.02)
 
 
 def papers_joint_limits(

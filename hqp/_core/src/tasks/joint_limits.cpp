@@ -11,9 +11,17 @@ namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
+/// The approach to the braking curve over T (hqp.tasks.joint_limits._approach).
+double approach(double q, double v, double q_max, double B, double cap, double T) {
+  const double v_b = std::sqrt(2.0 * B * std::max(q_max - q, 0.0));
+  const double toward = std::max(v, 0.0);
+  const double ff = v_b > 0.0 ? B * toward / v_b : (toward > 0.0 ? kInf : 0.0);
+  return (v_b - v) / T - std::min(cap, ff);
+}
+
 /// The upper bound toward q_max of one joint (hqp.tasks.joint_limits._upper_bounds).
 double upper_bound(double q, double v, double q_max, double v_max, double A, double B,
-                   double cap, double dt, bool clip, double v_time) {
+                   double cap, double dt, bool clip, double v_time, double a_time) {
   const double room = q_max - q - dt * v;
   const double pos = std::min(2.0 * room, room) / (dt * dt);
   const double T = std::max(dt, v_time);
@@ -24,7 +32,8 @@ double upper_bound(double q, double v, double q_max, double v_max, double A, dou
     const double b = dt * (2.0 * v + B * dt);
     const double c = v * v + 2.0 * B * (q + dt * v - q_max);
     const double disc = b * b - 4.0 * dt * dt * c;
-    const double root = (-b + std::sqrt(std::max(disc, 0.0))) / (2.0 * dt * dt);
+    double root = (-b + std::sqrt(std::max(disc, 0.0))) / (2.0 * dt * dt);
+    if (a_time > 0.0) root = std::min(root, approach(q, v, q_max, B, cap, std::max(dt, a_time)));
     const double vp = std::max(v, 0.0);
     const double needed = vp * vp / (2.0 * std::max(q_max - q, 1e-12));
     const double brake = -std::min(cap, std::max(B, needed));
@@ -50,9 +59,9 @@ void joint_limit_bounds(const JointLimitParams& p, const Eigen::Ref<const Eigen:
   for (Eigen::Index i = 0; i < q.size(); ++i) {
     const double cap = std::min(A(i), p.reserve * B(i));
     double u = upper_bound(q(i), v(i), p.q_upper(i), p.v_max(i), A(i), B(i), cap, dt, clip,
-                           p.velocity_time);
+                           p.velocity_time, p.approach_time);
     double l = -upper_bound(-q(i), -v(i), -p.q_lower(i), p.v_max(i), A(i), B(i), cap, dt, clip,
-                            p.velocity_time);
+                            p.velocity_time, p.approach_time);
     if (l > u) {
       // crossed at a state that is not viable: brake (past a limit: the return wins)
       double brake = v(i) >= 0.0 ? -cap : cap;

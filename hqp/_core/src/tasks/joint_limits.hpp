@@ -15,6 +15,7 @@ struct JointLimitParams {
   double velocity_time = 0.0;        ///< time constant of the velocity bound [s]
   double inactive_beyond = 1e4;      ///< bounds beyond this are dropped (infinite)
   bool acceleration_bounds = true;   ///< |qdd| <= A as well
+  double approach_time = 0.0;        ///< time constant of the approach to the braking curve
 };
 
 /// lb <= qdd_a <= ub (each (na,)) at the actuated joints' (q, v), for the maximum
