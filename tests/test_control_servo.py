@@ -74,8 +74,19 @@ def test_safe_mode_when_the_solve_fails(failure, monkeypatch):
     for name, frame in (("right", "right_sole"), ("left", "left_sole")):
         gen -= m.frame_jacobian(frame).T @ cmd.wrenches[name]
     np.testing.assert_allclose(gen[:6], 0.0, atol=1e-6)
-    np.testing.assert_allclose(gen[6:] - c.damping * state.v[6:], cmd.tau, atol=1e-6)
-    assert np.linalg.norm(cmd.tau - good.tau) < np.linalg.norm(good.tau)  # same ballpark
+    safe_tau = c.safe_command()[0]
+    np.testing.assert_allclose(gen[6:] - c.damping * state.v[6:], safe_tau, atol=1e-6)
+    assert np.linalg.norm(safe_tau - good.tau) < np.linalg.norm(good.tau)  # same ballpark
+    # It is blended in from the torques sent last (no torque step), then sent as it is.
+    np.testing.assert_allclose(cmd.tau, backup.tau, atol=1e-9)
+    assert cmd.report.strictness_suspended
+    t = DT
+    while t < DT + c.stack.blend_time:
+        t += DT
+        cmd = c.step(state, t)
+        assert cmd.safe_mode
+    assert not cmd.report.strictness_suspended
+    np.testing.assert_allclose(cmd.tau, c.safe_command()[0], atol=1e-9)
 
 
 def test_non_finite_task_rows_give_the_safe_command():

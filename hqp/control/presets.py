@@ -372,6 +372,7 @@ def standing_controller(
     algorithm: str = "basis",
     diagnostics: str = "full",
     native: bool | None = None,
+    max_torque_rate: float | None = None,
     **gains: float,
 ) -> WholeBodyController:
     """Build a :class:`~hqp.control.servo.WholeBodyController` standing on both feet.
@@ -386,13 +387,16 @@ def standing_controller(
         diagnostics: ``"full"`` or ``"residuals"`` (see ``WholeBodyController``).
         native: Steady steps on the native step (see ``WholeBodyController``; ``None``: where
             it applies).
+        max_torque_rate: The servo's torque-rate level [N m/s] (see ``WholeBodyController``;
+            ``None``: none).
         **gains: Keyword arguments of :func:`standing_stack`.
 
     """
     model = robot.model()
     stack, contacts = standing_stack(robot, model, **gains)
     return WholeBodyController(model, contacts, stack, dt=dt, backend=backend,
-                               algorithm=algorithm, diagnostics=diagnostics, native=native)
+                               algorithm=algorithm, diagnostics=diagnostics, native=native,
+                               max_torque_rate=max_torque_rate)
 
 
 def standing_nullspace_controller(

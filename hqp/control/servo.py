@@ -11,6 +11,15 @@ One control step of :class:`WholeBodyController`:
 4. torque blending after changes that cannot be ramped, the torque-limit check;
 5. a :class:`~hqp.control.command.FeasibilityReport` (:mod:`hqp.control.diagnostics`).
 
+The torque-rate level (HQP only, opt-in: ``max_torque_rate``, e.g. :data:`MAX_TORQUE_RATE`):
+between the constraint levels and the tasks the servo adds
+one level of its own, ``|tau - tau_prev| <= max_torque_rate * dt`` over the actuated joints
+(``tau_prev``: the hierarchy's torques of the previous step), reported as the task
+``torque_rate``. A level below in conflict (a centre-of-mass goal faster than the support
+allows, an unreachable hand) then cannot turn the switches of its active set (acceleration
+bounds entering and leaving) into torque steps: every such switch is spread over several steps,
+and the constraint levels above (physics, contact, torque and joint limits) still win over it.
+
 The controller never returns NaN torques: if the resolver fails, it sends a defined safe
 command (gravity and contact-force compensation with joint damping on the current contacts)
 and says so in the report (``Command.safe_mode``).
@@ -19,6 +28,7 @@ and says so in the report (``Command.safe_mode``).
 from __future__ import annotations
 
 import abc
+import dataclasses
 import time
 from collections.abc import Sequence
 from typing import TYPE_CHECKING
@@ -31,8 +41,10 @@ from hqp.control.native import NativeEngine, NativeStepMirror
 from hqp.control.resolver import HQPResolver, Resolver
 from hqp.errors import InvalidInput
 from hqp.model.layout import Layout
-from hqp.stack import Stack
-from hqp.tasks.dynamics import joint_torques
+from hqp.solver import Level
+from hqp.stack import BuiltStack, Stack, TaskSpan
+from hqp.tasks.base import Category, Rows
+from hqp.tasks.dynamics import joint_torques, torque_map
 from hqp.tasks.reference import min_jerk
 
 QUATERNION_TOLERANCE = 1e-3
@@ -42,8 +54,19 @@ the state is refused."""
 if TYPE_CHECKING:
     from hqp.model import RobotModel, RobotState
     from hqp.solver import HierarchicalSolver, Solution
-    from hqp.stack import BuiltStack
-    from hqp.tasks.base import Category, Task
+    from hqp.tasks.base import Task
+
+MAX_TORQUE_RATE = 4000.0
+"""Measured choice of the bound on the rate of the hierarchy's torques [N m/s]: 4 N m per 1 ms
+step, under the 5 N m per step the closed-loop conflict tests hold (a torque an actuator with
+a few ms of torque rise time follows)."""
+
+CONSTRAINT_CATEGORIES = (Category.PHYSICS, Category.CONTACT_LIMITS, Category.JOINT_LIMITS,
+                         Category.COLLISION)
+"""The constraint sub-levels the torque-rate level is placed after."""
+
+RATE_TASK = "torque_rate"
+"""Name of the torque-rate level's rows in the report."""
 
 
 class Controller(abc.ABC):
@@ -175,6 +198,11 @@ class WholeBodyController(Controller):
             comes from a bundled robot, the resolver is the default HQP one with the basis
             algorithm and ``backend`` is ``None`` or ``"native"``; an explicit other backend
             means the Python step on that backend.
+        max_torque_rate: Bound on the rate of the hierarchy's torques [N m/s], a scalar or
+            ``(na,)`` (module docstring; HQP resolvers only; :data:`MAX_TORQUE_RATE` is the
+            measured choice); ``None`` (default): no torque-rate level. The native step does
+            not mirror the level yet: with it, ``native=None`` means the Python step and
+            ``native=True`` is refused.
 
     Raises:
         InvalidInput: Bad period, tolerance or diagnostics mode; a contact frame not in the
@@ -200,6 +228,7 @@ class WholeBodyController(Controller):
         damping: float = 2.0,
         resolver: Resolver | None = None,
         native: bool | None = None,
+        max_torque_rate: float | np.ndarray | None = None,
     ) -> None:
         if not np.isfinite(dt) or dt <= 0.0:
             raise InvalidInput(f"WholeBodyController: dt must be positive, got {dt}")
@@ -221,8 +250,11 @@ class WholeBodyController(Controller):
             robot_model.frame_id(frame, f"WholeBodyController: contact {name!r}")
         self.layout = Layout.build(robot_model.nv, self.stack.layout_contacts())
         self.dt = float(dt)
+        if native and max_torque_rate is not None:
+            raise InvalidInput("WholeBodyController: the native step does not mirror the "
+                               "torque-rate level (max_torque_rate) yet; use native=None")
         if native is None:
-            native = (resolver is None and algorithm == "basis"
+            native = (resolver is None and algorithm == "basis" and max_torque_rate is None
                       and backend in (None, "native") and robot_model.source is not None)
         if native and robot_model.source is None:
             raise InvalidInput("WholeBodyController: native=True needs a model built by "
@@ -236,6 +268,16 @@ class WholeBodyController(Controller):
         self.feasibility = Diagnostics(tolerance, singular_tolerance, diagnostics)
         self.diagnostics = diagnostics
         self.damping = float(damping)
+        self.max_torque_rate: np.ndarray | None = None
+        if max_torque_rate is not None:
+            rate = np.broadcast_to(np.asarray(max_torque_rate, dtype=float), (robot_model.na,))
+            if not np.all(rate > 0.0):
+                raise InvalidInput(f"WholeBodyController: max_torque_rate must be > 0, got "
+                                   f"{max_torque_rate}")
+            self.max_torque_rate = rate.copy()
+        self._rate_after = max((k for k, c in enumerate(self.stack.level_categories)
+                                if c in CONSTRAINT_CATEGORIES), default=-1)
+        self._rate_ref: np.ndarray | None = None  # the hierarchy's torques of the last step
         self.last_t = 0.0
         self.last_x: np.ndarray | None = None
         self.last_tau: np.ndarray | None = None
@@ -246,6 +288,7 @@ class WholeBodyController(Controller):
         self._blend_notes: tuple[str, ...] = ()
         self._blend_contact: str | None = None
         self._blend_resolver: Resolver | None = None
+        self._was_safe = False
 
     @property
     def backend(self) -> str:
@@ -364,7 +407,7 @@ class WholeBodyController(Controller):
             self._relayout()
             x_prev = None
         self.stack.advance(self.model, self.layout, self.dt, t, x_prev)
-        built = self.stack.build(self.model, self.layout, self.dt, t)
+        built = self._with_rate_level(self.stack.build(self.model, self.layout, self.dt, t))
         self._start_blend(t)
         before = self._build_before_contact(t)
         t2 = clock()
@@ -382,6 +425,11 @@ class WholeBodyController(Controller):
             qdd = x[: self.layout.nv].copy()
             wrenches = {c.name: x[c.slice].copy() for c in self.layout.contacts}
             self.last_x = x.copy()
+        self._rate_ref = tau.copy()
+        if safe != self._was_safe:
+            self._start_safe_blend(t, safe)
+            tau_before = None
+        self._was_safe = safe
         tau, suspended = self._blend(tau, t, notes, tau_before)
         tau = self._clip(tau, notes)
         t4 = clock()
@@ -463,6 +511,34 @@ class WholeBodyController(Controller):
                              f"{worst:.3g} N m)")
         return tau
 
+    def _with_rate_level(self, built: BuiltStack) -> BuiltStack:
+        """Insert the torque-rate level after the constraint levels (module docstring).
+
+        ``tau_ref - d <= T x + t0 <= tau_ref + d`` with ``d = max_torque_rate * dt`` and
+        ``tau = T x + t0`` (:func:`~hqp.tasks.dynamics.torque_map`); none at the first step,
+        for a resolver other than HQP's, or with ``max_torque_rate=None``.
+        """
+        if (self.max_torque_rate is None or self._rate_ref is None
+                or not isinstance(self.resolver, HQPResolver)):
+            return built
+        T, t0 = torque_map(self.model, self.layout, "WholeBodyController: torque rate")
+        d = self.max_torque_rate * self.dt
+        lower = self._rate_ref - d - t0
+        upper = self._rate_ref + d - t0
+        k = sum(1 for index in built.level_index if index <= self._rate_after)
+        index = max(self._rate_after, 0)
+        levels = list(built.levels)
+        levels.insert(k, Level(C=T, lower=lower, upper=upper, name=RATE_TASK))
+        level_index = built.level_index[:k] + (index,) + built.level_index[k:]
+        spans = [s if s.built_level < k else dataclasses.replace(s, built_level=s.built_level + 1)
+                 for s in built.spans]
+        spans.insert(sum(1 for s in built.spans if s.built_level < k),
+                     TaskSpan(RATE_TASK, index, k, slice(0, 0), slice(0, T.shape[0]), 1.0, 1.0,
+                              True))
+        rows = dict(built.rows)
+        rows[RATE_TASK] = Rows(C=T, lower=lower, upper=upper)
+        return BuiltStack(levels, level_index, tuple(spans), rows, built.n)
+
     def _relayout(self) -> None:
         self.layout = Layout.build(self.model.nv, self.stack.layout_contacts())
         self.last_x = None
@@ -521,6 +597,21 @@ class WholeBodyController(Controller):
         self._blend_notes = tuple(e.note for e in events)
         contacts = {e.contact for e in events}
         self._blend_contact = contacts.pop() if len(events) == 1 and None not in contacts else None
+
+    def _start_safe_blend(self, t: float, safe: bool) -> None:
+        """Blend into (or out of) the safe command: the offset from the last torques decays.
+
+        The safe command (gravity and contact compensation, joint damping) differs from the
+        hierarchy's last torques by tens of N m; sent at once it is a torque step. Entering and
+        leaving safe mode start the decaying-offset blend of :meth:`_blend` over the stack's
+        ``blend_time`` instead (a blend already running restarts from the torques sent last).
+        """
+        if self.last_tau is None or self.stack.blend_time <= 0.0:
+            return
+        self._blend_start = float(t)
+        self._blend_delta = None
+        self._blend_contact = None
+        self._blend_notes = ("safe mode entered",) if safe else ("safe mode left",)
 
     def _build_before_contact(self, t: float) -> BuiltStack | None:
         """Levels of the hierarchy without the contact being blended in (``None``: no blend)."""
