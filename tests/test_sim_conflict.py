@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 import hqp.robots as robots
+from hqp.control.servo import MAX_TORQUE_RATE
 from hqp.controller import standing_controller
 from hqp.sim import Event, simulate
 from hqp.tasks.base import Category
@@ -64,7 +65,7 @@ def test_a_centre_of_mass_move_faster_than_the_support_allows(name):
     """The CoM goal 5 cm forward in 0.4 s (a min-jerk peak of 1.8 m/s^2, more than the soles'
     centre of pressure allows): the balance level in conflict."""
     robot = _load(name)
-    c = standing_controller(robot, diagnostics="residuals")
+    c = standing_controller(robot, diagnostics="residuals", max_torque_rate=MAX_TORQUE_RATE)
     com = c.task("com")
 
     def move(sim, ctrl, t):
@@ -80,7 +81,7 @@ def test_a_centre_of_mass_move_faster_than_the_support_allows(name):
 def test_an_unreachable_hand_goal(name):
     """The right hand sent 1.5 m ahead of the pelvis (out of reach) and held there."""
     robot = _load(name)
-    c = standing_controller(robot, diagnostics="residuals")
+    c = standing_controller(robot, diagnostics="residuals", max_torque_rate=MAX_TORQUE_RATE)
     model = c.model
     hand = PositionTask(model, robot.hands[1], name="hand", kp=30.0)
     model.update(robot.q_standing, np.zeros(model.nv))
