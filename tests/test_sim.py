@@ -303,7 +303,8 @@ def test_torques_stay_continuous_while_the_balance_level_is_in_conflict():
     # from step to step. Before the torque-rate level and the approach to the braking curve
     # the torques jumped by up to 45 N m per step (24 N m with the rate level alone: the left
     # shoulder reaching its braking curve at 25 rad/s^2; 105 N m with the approach alone).
-    r, c, hand, shift = _weight_shift_setup(max_torque_rate=MAX_TORQUE_RATE)
+    r, c, hand, shift = _weight_shift_setup(max_torque_rate=MAX_TORQUE_RATE,
+                                            braking_approach_time=0.02)
     log = simulate(r, c, 0.9, [Event(0.10, shift(0.4), "CoM over the right foot, too fast")])
     assert not log.fell and log.clip_count == 0 and not log.safe_mode.any()
     assert "conflict" in log.status["com"]  # the shift is infeasible: balance in conflict

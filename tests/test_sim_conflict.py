@@ -21,6 +21,10 @@ JUMP_NM = 5.0
 LIMIT_RAD = 1e-3
 """Stated bound on a joint's excursion past its controller limit [rad]."""
 
+SMOOTH = {"max_torque_rate": MAX_TORQUE_RATE, "braking_approach_time": 0.02}
+"""The servo's torque-rate level and the joint limits' approach to the braking curve (opt-in,
+docs/control.md)."""
+
 
 def _load(name):
     try:
@@ -65,7 +69,7 @@ def test_a_centre_of_mass_move_faster_than_the_support_allows(name):
     """The CoM goal 5 cm forward in 0.4 s (a min-jerk peak of 1.8 m/s^2, more than the soles'
     centre of pressure allows): the balance level in conflict."""
     robot = _load(name)
-    c = standing_controller(robot, diagnostics="residuals", max_torque_rate=MAX_TORQUE_RATE)
+    c = standing_controller(robot, diagnostics="residuals", **SMOOTH)
     com = c.task("com")
 
     def move(sim, ctrl, t):
@@ -81,7 +85,7 @@ def test_a_centre_of_mass_move_faster_than_the_support_allows(name):
 def test_an_unreachable_hand_goal(name):
     """The right hand sent 1.5 m ahead of the pelvis (out of reach) and held there."""
     robot = _load(name)
-    c = standing_controller(robot, diagnostics="residuals", max_torque_rate=MAX_TORQUE_RATE)
+    c = standing_controller(robot, diagnostics="residuals", **SMOOTH)
     model = c.model
     hand = PositionTask(model, robot.hands[1], name="hand", kp=30.0)
     model.update(robot.q_standing, np.zeros(model.nv))

@@ -71,24 +71,25 @@ def feet_contacts(robot: Robot, model: RobotModel, *, friction: float | None = N
 
 
 def viable_joint_limits(robot: Robot, model: RobotModel,
-                        max_joint_acceleration: float = 50.0) -> JointLimits:
+                        max_joint_acceleration: float = 50.0,
+                        approach_time: float = 0.0) -> JointLimits:
     """Return the viable joint limits of the standing controllers (model at the standing pose).
 
     The bound on ``|qdd|`` is the fixed-base torque estimate clipped to
     ``[5, max_joint_acceleration]`` rad/s^2; the braking assumption is the smaller of half of
     it and what the supports allow (:class:`~hqp.tasks.joint_limits.SupportBraking`,
-    all-or-none); velocity bounds and the braking curve are approached over 20 ms. Why these
-    choices (and what was measured against the alternatives): docs/control.md, "The standing
-    joint limits".
+    all-or-none); velocity bounds are approached over 20 ms, the braking curve over
+    ``approach_time`` (opt-in; 0.02 s is the measured choice). Why these choices (and what was
+    measured against the alternatives): docs/control.md, "The standing joint limits".
     """
     qdd_max = np.clip(max_acceleration_from_torques(model, margin=0.5), 5.0,
                       max_joint_acceleration)
     braking = SupportBraking(model, [robot.contact(foot).frame for foot in robot.feet],
                              0.5 * qdd_max, margin=0.5, per_contact=False)
-    # Velocity bounds and the braking curve approached over 20 ms rather than in one step (no
-    # torque step when a joint reaches its velocity limit or its braking curve).
+    # Velocity bounds approached over 20 ms rather than in one step (no torque step when a
+    # joint reaches its velocity limit); the braking curve over approach_time.
     return JointLimits(qdd_max=qdd_max, braking=braking, reserve=2.0, velocity_time=0.02,
-                       approach_time=0.02)
+                       approach_time=approach_time)
 
 
 def papers_joint_limits(
@@ -130,6 +131,7 @@ def constraint_stack(
     contact_kd: float = 0.0,
     joint_limits: str | Task = "viable",
     max_joint_acceleration: float = 50.0,
+    braking_approach_time: float = 0.0,
     zone: float = 0.1,
     zone_gains: tuple[float, float] = (400.0, 40.0),
 ) -> tuple[Stack, list[Task]]:
@@ -154,6 +156,8 @@ def constraint_stack(
             ``"none"``, or a task to put on the JOINT_LIMITS level.
         max_joint_acceleration: Upper clip of the viable joint-acceleration bound [rad/s^2]
             (>= 5).
+        braking_approach_time: Time over which a viable bound approaches the braking curve
+            [s] (``JointLimits(approach_time=...)``; 0: none).
         zone: Width of the activation zones [rad].
         zone_gains: ``(kp, kv)`` of the zones' PD law (eq. 27).
 
@@ -180,7 +184,8 @@ def constraint_stack(
     if isinstance(joint_limits, Task):
         stack.add(joint_limits, _joint_limit_level(stack))
     elif joint_limits == "viable":
-        stack.add(viable_joint_limits(robot, model, max_joint_acceleration),
+        stack.add(viable_joint_limits(robot, model, max_joint_acceleration,
+                                      braking_approach_time),
                   _joint_limit_level(stack))
     elif joint_limits == "zones":
         stack.add(JointLimitZone(zone=zone, kp=zone_gains[0], kv=zone_gains[1]),
@@ -235,6 +240,7 @@ def standing_stack(
     angular_momentum_gain: float = 10.0,
     ramp_time: float = 0.6,
     max_joint_acceleration: float = 50.0,
+    braking_approach_time: float = 0.0,
 ) -> tuple[Stack, list[Task]]:
     """Build the stack of a humanoid standing on both feet, and its contacts.
 
@@ -275,6 +281,9 @@ def standing_stack(
         max_joint_acceleration: Upper clip of the joint-acceleration bound [rad/s^2] (>= 5;
             the bound is the fixed-base torque estimate clipped to ``[5, this]``; the
             braking assumption is half of it, or what the active supports allow).
+        braking_approach_time: Time over which the joint-limit bounds approach the braking
+            curve [s] (0: the discrete bound alone; 0.02 is the measured choice,
+            docs/control.md).
 
     Returns:
         ``(stack, contacts)``; pass both to :class:`~hqp.control.servo.WholeBodyController`.
@@ -283,7 +292,8 @@ def standing_stack(
     stack, contacts = constraint_stack(
         robot, model, ramp_time=ramp_time, friction=friction, sole_margin=sole_margin,
         torque_scale=torque_scale, contact_kd=contact_kd,
-        max_joint_acceleration=max_joint_acceleration)
+        max_joint_acceleration=max_joint_acceleration,
+        braking_approach_time=braking_approach_time)
     add_standing_tasks(stack, robot, model, com_kp=com_kp, orientation_kp=orientation_kp,
                        posture_kp=posture_kp, angular_momentum_weight=angular_momentum_weight,
                        angular_momentum_gain=angular_momentum_gain)
