@@ -195,3 +195,34 @@ def test_bad_arguments():
     c = WholeBodyController(m)
     with pytest.raises(InvalidInput):
         c.step(RobotState(q[:-1], np.zeros(m.nv)), 0.0)
+
+
+def test_the_torque_rate_level_spreads_a_torque_step():
+    """An unramped task (a torque step of several N m) with the servo's torque-rate level:
+    every step changes the torques by at most ``max_torque_rate * dt``, the level is reported,
+    and the torques reach those of the hierarchy without the level once it is satisfied."""
+    rate = 5000.0  # [N m/s]: 5 N m per 1 ms step
+    runs = {}
+    for limited in (False, True):
+        c, m, q = make()
+        if limited:
+            c.max_torque_rate = np.full(m.na, rate)
+        state = RobotState(q, np.zeros(m.nv))
+        taus = [c.step(state, i * DT).tau for i in range(3)]
+        c.add_task(JointAccelStandIn("new", 10, 50.0), Category.OPERATIONAL, ramp_time=0.0)
+        for i in range(3, 100):
+            cmd = c.step(state, i * DT)
+            taus.append(cmd.tau)
+        runs[limited] = (np.array(taus), cmd)
+    free, limited = runs[False][0], runs[True][0]
+    assert np.abs(np.diff(free, axis=0)).max() > 5 * rate * DT  # the step the level spreads
+    assert np.abs(np.diff(limited, axis=0)).max() <= rate * DT * (1 + 1e-6)
+    assert "torque_rate" in runs[True][1].report and "torque_rate" not in runs[False][1].report
+    assert runs[True][1].report["torque_rate"].status is Feasibility.SATISFIED
+    np.testing.assert_allclose(limited[-1], free[-1], atol=1e-6 * np.abs(free[-1]).max())
+
+
+def test_the_native_step_refuses_the_torque_rate_level():
+    c, m, q = make()
+    with pytest.raises(InvalidInput, match="torque-rate"):
+        WholeBodyController(m, [], c.stack, native=True, max_torque_rate=1000.0)
