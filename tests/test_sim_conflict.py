@@ -61,9 +61,8 @@ _OPEN_COM = (
     "paper-humanoid",
     pytest.param("g1", marks=pytest.mark.xfail(strict=True, reason=_OPEN_COM.format(
         robot="g1", figures="56 N m in one step, no safe-mode step, no joint past a limit"))),
-    pytest.param("talos", marks=pytest.mark.xfail(strict=True, reason=_OPEN_COM.format(
-        robot="talos", figures="192 N m in one step, 3 safe-mode steps, a joint 0.0099 rad past "
-        "its limit"))),
+    # talos fails the same way (192 N m in one step, 3 safe-mode steps, a joint 0.0099 rad past
+    # its limit; 39 s of CPU for the 0.8 s run): not run, to keep the suite's cost down
 ])
 def test_a_centre_of_mass_move_faster_than_the_support_allows(name):
     """The CoM goal 5 cm forward in 0.4 s (a min-jerk peak of 1.8 m/s^2, more than the soles'
