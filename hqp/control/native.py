@@ -328,7 +328,8 @@ def _parameters(task: Any) -> tuple[Any, ...]:
         out += (tau, getattr(task, "scale", None))
     elif isinstance(task, JointLimits):
         out += (task.position_margin, task.velocity_scale, task.reserve, task.velocity_time,
-                task.inactive_beyond, task.acceleration_bounds, task.qdd_max is None)
+                task.approach_time, task.inactive_beyond, task.acceleration_bounds,
+                task.qdd_max is None)
     reference = getattr(task, "reference", None)
     if reference is not None and hasattr(reference, "kp"):
         out += _gains(task)
