@@ -10,6 +10,7 @@ import math
 
 import numpy as np
 import pytest
+from test_core_model import native_model
 
 from hqp import robots
 from hqp.layout import Layout
@@ -19,8 +20,6 @@ from hqp.tasks.orientation import OrientationTask, jlog3_rate_times
 from hqp.tasks.position import PositionTask
 from hqp.tasks.posture import PostureTask
 from hqp.tasks.reference import PDReference
-
-from test_core_model import native_model
 
 core = pytest.importorskip("hqp._core._ext")
 
