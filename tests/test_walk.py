@@ -96,7 +96,12 @@ def test_walk_plan_rejects_unknown_and_negative_parameters() -> None:
 def test_behavior_backend_key_is_checked() -> None:
     from hqp.behaviors.loader import load_behavior, parse_behavior
 
-    assert load_behavior("walk").backend == "daqp"
+    assert load_behavior("walk").backend is None  # the default (the native step)
+    good = ('[behavior]\ninitial = "a"\nbackend = "daqp"\n'
+            '[tasks.p]\ntype = "posture"\ngoal = "standing"\n'
+            '[actions.a]\ntasks = ["p"]\n[phases.a]\naction = "a"\n'
+            'contacts = ["left_foot", "right_foot"]\nfinal = true\n')
+    assert parse_behavior(good).backend == "daqp"
     text = ('[behavior]\ninitial = "a"\nbackend = "cplex"\n'
             '[tasks.p]\ntype = "posture"\ngoal = "standing"\n'
             '[actions.a]\ntasks = ["p"]\n[phases.a]\naction = "a"\nfinal = true\n')
