@@ -202,3 +202,20 @@ def test_the_contact_force_regularisation_runs_natively():
         _same_command(nat.step(state, t), py.step(state, t), f"t={t}")
         _same_errors(nat, py, f"t={t}")
     assert nat.native.unsupported is None and nat.native.steps >= 7
+
+
+def test_a_native_step_runs_one_pinocchio_pass():
+    """The Python model's pass waits for a reader after a native step (the core ran its own);
+    read, it gives the Python step's quantities at the same state."""
+    robot, nat, py = _pair("g1", "residuals")
+    for t, state in _states(robot, nat.model, 4, seed=13):
+        nat.step(state, t)
+        py.step(state, t)
+    assert nat.native.steps >= 3
+    assert nat.model._pending and not py.model._pending  # no second pass unless read
+    for name in ("M", "h", "com", "com_velocity", "com_jacobian", "centroidal_matrix",
+                 "gravity"):
+        np.testing.assert_array_equal(getattr(nat.model, name), getattr(py.model, name))
+    assert not nat.model._pending
+    frame = robot.hands[1]
+    np.testing.assert_array_equal(nat.model.frame_jacobian(frame), py.model.frame_jacobian(frame))

@@ -100,6 +100,7 @@ class NativeStepMirror:
         self._contacts: dict[str, int] = {}
         self._names: list[str] = []  # task name by handle
         self._entries: list[tuple[Any, ...]] | None = None  # row placement, after a step
+        self._report_order: list[tuple[int, tuple[Any, ...]]] | None = None
         for task in stack.tasks:
             level = stack.level_of_task(task.name)
             self._add(core, task, level, self._contacts)
@@ -250,14 +251,13 @@ class NativeStepMirror:
         to) are :meth:`~hqp.control.diagnostics.Diagnostics.hqp_statuses` on :meth:`built`.
         """
         core = self.step_core
-        if self._entries is None:
-            self._entries = sorted(enumerate(core.entry(h) for h in range(len(self._names))),
-                                   key=lambda e: e[1][2])
+        if self._report_order is None:  # by built level, as Stack.build's spans
+            self._report_order = sorted(enumerate(self._placements()), key=lambda e: e[1][2])
         costs, level_sigma = core.level_summary()
         sigmas = core.diagnose() if diagnostics.full else None
         residuals = core.residuals
         out = []
-        for handle, (_kind, level, built_level, _e0, neq, _i0, nin, _w) in self._entries:
+        for handle, (_kind, level, built_level, _e0, neq, _i0, nin, _w) in self._report_order:
             if neq + nin == 0 or built_level < 0:
                 continue
             if not neq:
@@ -276,6 +276,12 @@ class NativeStepMirror:
                         tuple(float(c) for c in costs), built)
             out.append(TaskStatus(self._names[handle], level, status, residual, None, sigma))
         return tuple(out), tuple(float(c) for c in costs), None
+
+    def _placements(self) -> list[tuple[Any, ...]]:
+        """Return where each kernel's rows sit (``NativeStep.entry``, handle order)."""
+        if self._entries is None:
+            self._entries = [self.step_core.entry(h) for h in range(len(self._names))]
+        return self._entries
 
     def built(self) -> tuple[BuiltStack, Solution]:
         """Return the last step's levels, task rows and solver reports, as Python has them.
@@ -298,8 +304,8 @@ class NativeStepMirror:
                                        np.zeros(0)))
             index.append(level)
         spans, rows = [], {}
-        for handle, name in enumerate(self._names):
-            _kind, level, built, eq0, neq, in0, nin, sqrt_w = core.entry(handle)
+        for name, (_kind, level, built, eq0, neq, in0, nin, sqrt_w) in zip(
+                self._names, self._placements()):
             if neq + nin == 0 or built < 0:
                 continue
             _lv, A, b, C, lo, up = raw[built]

@@ -395,9 +395,11 @@ class WholeBodyController(Controller):
         clock = time.perf_counter
         t0 = clock()
         q = self._checked_q(state.q, t)
-        self.model.update(q, state.v)
+        native = self.native is not None and self._blend_start is None
+        # a native step runs its own pinocchio pass: the Python model's waits for a reader
+        self.model.update(q, state.v, defer=native)
         t1 = clock()
-        if self.native is not None and self._blend_start is None:
+        if native:
             command = self._native_step(q, state.v, t, t0, t1)
             if command is not None:
                 return command
@@ -422,8 +424,7 @@ class WholeBodyController(Controller):
             self.last_x = None
         else:
             x, tau = result
-            qdd = x[: self.layout.nv].copy()
-            wrenches = {c.name: x[c.slice].copy() for c in self.layout.contacts}
+            qdd, wrenches = self._split(x)
             self.last_x = x.copy()
         self._rate_ref = tau.copy()
         if safe != self._was_safe:
@@ -478,10 +479,11 @@ class WholeBodyController(Controller):
         mirror.record_errors()
         t3 = clock()
         self.native.steps += 1
+        self._rate_ref = tau.copy()
+        self._was_safe = False
         notes: list[str] = []
         tau = self._clip(tau, notes)
-        qdd = x[: self.layout.nv].copy()
-        wrenches = {c.name: x[c.slice].copy() for c in self.layout.contacts}
+        qdd, wrenches = self._split(x)
         t4 = clock()
         statuses, costs, built = mirror.report(self.feasibility)
         report = FeasibilityReport(tasks=statuses, notes=tuple(notes), level_costs=costs)
@@ -497,6 +499,11 @@ class WholeBodyController(Controller):
                    "report": t5 - t4, "total": t5 - t0}
         return Command(tau=tau, qdd=qdd, wrenches=wrenches, report=report, safe_mode=False,
                        timings=timings, t=float(t))
+
+    def _split(self, x: np.ndarray) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+        """``qdd`` and the wrench of each contact slot of a solution ``x`` (copies)."""
+        return x[: self.layout.nv].copy(), {c.name: x[c.slice].copy()
+                                              for c in self.layout.contacts}
 
     def _clip(self, tau: np.ndarray, notes: list[str]) -> np.ndarray:
         """Torques within the model's limits; a clip beyond rounding is noted."""

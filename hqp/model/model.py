@@ -52,6 +52,18 @@ class RobotState:
     wrenches: Mapping[str, np.ndarray] | None = field(default=None)
 
 
+
+def _computed(name: str, doc: str) -> property:
+    """Return a property reading a quantity of the update's pass (run first if deferred)."""
+    attr = "_" + name
+
+    def get(self: RobotModel) -> np.ndarray:
+        if self._pending:
+            self._compute()
+        return getattr(self, attr)  # type: ignore[no-any-return]
+
+    return property(get, doc=doc)
+
 class RobotModel:
     """Kinematics and dynamics of one robot, updated once per control step.
 
@@ -83,7 +95,8 @@ class RobotModel:
         torque_limits: np.ndarray | None = None,
     ) -> None:
         self.model = model
-        self.data = model.createData()
+        self._data = model.createData()
+        self._pending = False  # an update whose pinocchio pass waits for its first reader
         self.name = name
         self.source: Any = None
         """The bundled robot this model was built from (``Robot.model()`` sets it; ``None``
@@ -148,15 +161,7 @@ class RobotModel:
         self._step_cache: dict[Hashable, Any] = {}
         self.q = pin.neutral(model)
         self.v = np.zeros(self.nv)
-        self.M = np.zeros((self.nv, self.nv))
-        self.h = np.zeros(self.nv)
-        self.com = np.zeros(3)
-        self.com_velocity = np.zeros(3)
-        self.com_jacobian = np.zeros((3, self.nv))
-        self.com_drift = np.zeros(3)
-        self.centroidal_matrix = np.zeros((6, self.nv))
-        self.centroidal_drift = np.zeros(6)
-        self._g = np.zeros(self.nv)
+
         self._upper = np.triu(np.ones((self.nv, self.nv), dtype=bool))
         self.update(self.q, self.v)
 
@@ -222,8 +227,16 @@ class RobotModel:
 
     # -- update -------------------------------------------------------------------------------
 
-    def update(self, q: np.ndarray, v: np.ndarray) -> None:
+    def update(self, q: np.ndarray, v: np.ndarray, *, defer: bool = False) -> None:
         """Compute every quantity of a control step at ``(q, v)``.
+
+        Args:
+            q: Configuration ``(nq,)``.
+            v: Velocity ``(nv,)``.
+            defer: Run the pinocchio pass when a derived quantity is first read (never if
+                none is): for a step whose rows the native core computes from its own model,
+                so that the state is checked and ``q``, ``v`` set, but no second pass runs
+                unless logs or behaviors read the model.
 
         Raises:
             InvalidInput: Wrong shape or non-finite entries.
@@ -241,27 +254,50 @@ class RobotModel:
             np.isfinite(q).all() and np.isfinite(v).all()
         ):
             raise InvalidInput(f"robot {self.name!r}: state holds NaN or inf")
-        model, data = self.model, self.data
         self.q = q.copy()
         self.v = v.copy()
         self._frame_cache.clear()
         self._step_cache.clear()
+        self._pending = True
+        if not defer:
+            self._compute()
+
+    def _compute(self) -> None:
+        """Run the update's one pinocchio pass at ``(self.q, self.v)``."""
+        model, data = self.model, self._data
+        self._pending = False
         # One pass over the tree (pinocchio's computeAllTerms): joint placements, velocities and
         # accelerations at qdd = 0 (the drift terms of the frames), joint Jacobians, M (upper
         # triangle), h, g, centre of mass, its velocity and Jacobian, A_g and dA_g.
         pin.computeAllTerms(model, data, self.q, self.v)
         pin.updateFramePlacements(model, data)
         M = data.M
-        self.M = np.where(self._upper, M, M.T)
-        self.h = data.nle.copy()
+        self._M = np.where(self._upper, M, M.T)
+        self._h = data.nle.copy()
         self._g = data.g.copy()
-        self.centroidal_matrix = data.Ag.copy()
-        self.centroidal_drift = data.dAg @ self.v
-        self.com_jacobian = data.Jcom.copy()
-        self.com = data.com[0].copy()
-        self.com_velocity = data.vcom[0].copy()
+        self._centroidal_matrix = data.Ag.copy()
+        self._centroidal_drift = data.dAg @ self.v
+        self._com_jacobian = data.Jcom.copy()
+        self._com = data.com[0].copy()
+        self._com_velocity = data.vcom[0].copy()
         # Linear rows of dA_g v are the momentum rate m c_ddot at qdd = 0.
-        self.com_drift = self.centroidal_drift[:3] / data.mass[0]
+        self._com_drift = self._centroidal_drift[:3] / data.mass[0]
+
+    @property
+    def data(self) -> pin.Data:
+        """Pinocchio's data at the last update's state (its pass run if deferred)."""
+        if self._pending:
+            self._compute()
+        return self._data
+
+    M = _computed("M", "Joint-space mass matrix ``M(q)`` ``(nv, nv)``.")
+    h = _computed("h", "Bias forces ``h(q, v)`` (Coriolis, centrifugal, gravity) ``(nv,)``.")
+    com = _computed("com", "Centre of mass ``(3,)`` [m].")
+    com_velocity = _computed("com_velocity", "Centre-of-mass velocity ``(3,)`` [m/s].")
+    com_jacobian = _computed("com_jacobian", "Centre-of-mass Jacobian ``(3, nv)``.")
+    com_drift = _computed("com_drift", "Centre-of-mass acceleration at ``qdd = 0`` ``(3,)``.")
+    centroidal_matrix = _computed("centroidal_matrix", "Centroidal momentum matrix ``A_g``.")
+    centroidal_drift = _computed("centroidal_drift", "``dA_g v`` ``(6,)``.")
 
     def per_update(self, key: Hashable, compute: Callable[[], T]) -> T:
         """Return ``compute()``, computed once per :meth:`update` for a given ``key``.
@@ -282,6 +318,8 @@ class RobotModel:
     @property
     def gravity(self) -> np.ndarray:
         """Generalized gravity ``g(q)`` ``(nv,)`` [N m] (from the update's single pass)."""
+        if self._pending:
+            self._compute()
         return self._g
 
     def selection(self) -> np.ndarray:
