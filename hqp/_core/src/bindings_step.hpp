@@ -102,8 +102,9 @@ inline void bind_step(nb::module_& m) {
       .def("set_braking", &NativeStep::set_braking, nb::arg("handle"), nb::arg("braking"))
       .def(
           "step",
-          [](NativeStep& s, const Eigen::VectorXd& q, const Eigen::VectorXd& v, double dt,
-             bool forbid_malloc) {
+          // Eigen::Ref: a contiguous float64 array is read in place (no copy per step)
+          [](NativeStep& s, Eigen::Ref<const Eigen::VectorXd> q,
+             Eigen::Ref<const Eigen::VectorXd> v, double dt, bool forbid_malloc) {
             if (q.size() != s.robot().nq() || v.size() != s.robot().nv())
               throw std::invalid_argument("state shapes: expected (" +
                                           std::to_string(s.robot().nq()) + "), (" +
