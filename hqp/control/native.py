@@ -105,6 +105,7 @@ class NativeStepMirror:
             level = stack.level_of_task(task.name)
             self._add(core, task, level, self._contacts)
             self._names.append(task.name)
+        self._model_errors = [t for t in stack.tasks if isinstance(t, (Contact, JointLimits))]
         self._pushed: dict[str, tuple[bool, Any]] = {
             t.name: (t.active, None if t.reference is None else t.reference.homogeneous.copy())
             for t in stack.tasks if isinstance(t, Contact)}
@@ -236,9 +237,8 @@ class NativeStepMirror:
         for handle, task, _orientation in self._goals:
             e, rate = core.kernel_error(handle)
             task.record_error(rate if isinstance(task, CentroidalMomentumTask) else e)
-        for task in self.stack.tasks:
-            if isinstance(task, (Contact, JointLimits)):
-                task.record_error(self.model)
+        for task in self._model_errors:
+            task.record_error(self.model)
 
     def report(self, diagnostics: Diagnostics) -> tuple[tuple[TaskStatus, ...],
                                                      tuple[float, ...], BuiltStack | None]:
