@@ -146,8 +146,14 @@ def test_page_in_headless_chromium(tmp_path):
             fields = measure.vector_inputs(page, measure.HAND_GOAL)
             # then a goal typed in the page's own goal field
             new = [goal[0], goal[1] + 0.1, dragged[2]]
-            measure.set_vector(fields[1:2], new[1:2])
-            time.sleep(1.0)  # the goal's line is written, the hand turns towards it
+            # the page refreshes the field from the server while the drag's goal settles: a
+            # value typed in that window can be overwritten before Enter; type it again until
+            # the field holds it (a fresh-clone run lost the typed value once)
+            for _ in range(5):
+                measure.set_vector(fields[1:2], new[1:2])
+                time.sleep(1.0)  # the goal's line is written, the hand turns towards it
+                if abs(float(fields[1].input_value()) - new[1]) < 0.006:
+                    break
             d0 = d1 = measure.hand_distance(page)
             deadline = time.monotonic() + 120
             while time.monotonic() < deadline and d1 > d0 - 0.05:
