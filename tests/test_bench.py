@@ -40,7 +40,12 @@ def test_registry():
                  "p95_ms": 2.0}]
 
     result = run_suite("unit-test-suite", quick=True)
-    assert result == {"suite": "unit-test-suite", "rows": _suite()}
+    assert result == {"suite": "unit-test-suite", "rows": _suite(), "skipped": []}
+    skipped = {"robot": "g1", "solver": "tsid", "levels": 1, "n": 2, "median_ms": None,
+               "p95_ms": None, "skipped": "no environment"}
+    register_suite("unit-test-skip")(lambda quick=False, progress=None: _suite() + [skipped])
+    assert run_suite("unit-test-skip") == {"suite": "unit-test-skip", "rows": _suite(),
+                                           "skipped": [skipped]}
     with pytest.raises(hqp.UnknownName, match="unknown suite 'nope'.*solver"):
         get_suite("nope")
 

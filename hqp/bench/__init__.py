@@ -64,9 +64,15 @@ def get_suite(name: str) -> Suite:
 def run_suite(
     name: str, quick: bool = False, progress: Callable[[str], None] | None = None
 ) -> dict:
-    """Run a suite; return ``{"suite": name, "rows": [...]}``."""
+    """Run a suite; return ``{"suite": name, "rows": [...], "skipped": [...]}``.
+
+    ``rows`` holds the configurations measured in the run (the contract: one row per measured
+    configuration, each with its times); a configuration the suite could not measure on this
+    machine (TSID without its environment) is listed in ``skipped`` with the reason instead.
+    """
     rows = get_suite(name)(quick=quick, progress=progress or (lambda _msg: None))
-    return {"suite": name, "rows": rows}
+    return {"suite": name, "rows": [r for r in rows if "skipped" not in r],
+            "skipped": [r for r in rows if "skipped" in r]}
 
 
 __all__ = ["Timing", "get_suite", "measure", "register_suite", "run_suite", "suite_names"]
