@@ -61,6 +61,8 @@ def command(args: argparse.Namespace) -> int:
         for path in write_plots(result, args.plot):
             logger.info("wrote %s", path)
     print(format_table(result) if args.wide else format_narrow(result))
+    for entry in result.get("skipped", []):
+        print(f"not measured: {entry['robot']} {entry['solver']}: {entry['skipped']}")
     return 0
 
 
