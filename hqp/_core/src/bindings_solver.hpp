@@ -160,7 +160,7 @@ inline void bind_solver(nb::module_& m) {
       [](const Eigen::MatrixXd& H, const Eigen::VectorXd& g, const Eigen::MatrixXd& C,
          const Eigen::VectorXd& lo, const Eigen::VectorXd& up) {
         LevelQP qp;
-        Eigen::VectorXd v;
+        Eigen::VectorXd v(H.rows());
         const bool ok = qp.solve(H, g, C, lo, up, v);
         return nb::make_tuple(v, ok);
       },
@@ -172,7 +172,8 @@ inline void bind_solver(nb::module_& m) {
       [](const Eigen::MatrixXd& A, const Eigen::VectorXd& b, double res_tol, int max_outer,
          std::optional<Eigen::VectorXi> warm) {
         Nnls solver;
-        const bool ok = solver.solve(A, b, res_tol, max_outer, warm ? &*warm : nullptr);
+        const CMapI w(warm ? warm->data() : nullptr, warm ? warm->size() : 0);
+        const bool ok = solver.solve(A, b, res_tol, max_outer, warm ? &w : nullptr);
         return nb::make_tuple(Eigen::VectorXd(solver.x()), solver.residual(), ok,
                               solver.steps());
       },

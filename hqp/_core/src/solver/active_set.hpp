@@ -16,8 +16,6 @@
 
 namespace hqp {
 
-using IVec = Eigen::VectorXi;
-
 constexpr double kFeasTol = 1e-9;
 constexpr double kDualTol = 1e-9;
 constexpr int kMaxIter = 6;
@@ -35,38 +33,42 @@ struct LevelRows {
 struct CarriedRows {
   CMatRef G;
   CVecRef gl, gu, gls, gus;
-  const MatrixXd* Z = nullptr;
+  const WorkM* Z = nullptr;
 };
 
 class ActiveSetSolver {
  public:
-  /// Solve from the guess (s, w), updated in place to the last guess tried. Returns true
-  /// and v when a guess verified; `ref` (nullptr: none) picks the minimiser closest to it
-  /// where the rows leave directions free.
-  bool solve(const LevelRows& L, const CarriedRows& K, IVec& s, IVec& w, double rank_tol,
-             double scale, int max_iter, const VectorXd* ref, VectorXd& v);
+  /// Capacity for ma equality rows, mc inequality rows and up to p carried rows over nv
+  /// reduced coordinates (the basis Z of n rows), at most max_iter guesses per solve.
+  void reserve(Index ma, Index mc, Index p, Index nv, Index n, int max_iter);
+  /// Solve from the guess (s (mc,), w (p,)), updated in place to the last guess tried.
+  /// Returns true and v (nv,) when a guess verified; `ref` (nv,; nullptr: none) picks the
+  /// minimiser closest to it where the rows leave directions free.
+  bool solve(const LevelRows& L, const CarriedRows& K, IVecRef s, IVecRef w, double rank_tol,
+             double scale, int max_iter, const double* ref, VecRef v);
 
  private:
   bool signed_multipliers(Index nheld, double dtol);
   PivotedQR kqr_;
   LeastSquares ls_;
-  MatrixXd M_, Kh_, MQ_;
-  VectorXd zv_;
-  VectorXd d_, kh_, vp_, rhs_, zr_, t_, cv_, gv_, grad_, res_, mu_, tmp_;
-  IVec sel_, held_, wp_, s_new_, w_new_, dep_g_, free_;
-  std::vector<IVec> seen_s_, seen_w_;
+  // fixed-capacity storage (linalg.hpp's Work), shaped at each guess
+  WorkM M_, Kh_, MQ_;
+  WorkM zv_;
+  WorkM d_, kh_, vp_, rhs_, zr_, t_, cv_, gv_, grad_, res_, mu_, tmp_;
+  WorkI held_, wp_, s_new_, w_new_, dep_g_, free_;
+  WorkI seen_;  // the guesses tried: (mc + p, max_iter + 1)
   // NNLS workspace
   Nnls nnls_;
-  MatrixXd nn_A_;
-  VectorXd nn_b_;
-  IVec nn_warm_, nn_memo_;  // per held row / per carried row: positive at the last call
+  WorkM nn_A_, nn_b_;
+  WorkI nn_warm_, nn_memo_;  // per held row / per carried row: positive at the last call
 };
 
 /// The active set of a point: level rows by the side they violate, carried rows held when
 /// within active_tol * scale of a bound (hqp.solver.active_set.guess_from_point).
-void guess_from_point(const VectorXd* cv, const CVecRef& lo, const CVecRef& up,
-                      const CVecRef& los, const CVecRef& ups, const VectorXd* gv,
+/// s (mc,) and w (p,) are given at their sizes (cv, gv: nullptr where mc, p are 0).
+void guess_from_point(const double* cv, const CVecRef& lo, const CVecRef& up,
+                      const CVecRef& los, const CVecRef& ups, const double* gv,
                       const CVecRef& gl, const CVecRef& gu, const CVecRef& gls,
-                      const CVecRef& gus, double active_tol, IVec& s, IVec& w);
+                      const CVecRef& gus, double active_tol, IVecRef s, IVecRef w);
 
 }  // namespace hqp

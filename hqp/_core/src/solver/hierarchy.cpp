@@ -13,7 +13,7 @@ namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
-bool within(const VectorXd& cx, const CVecRef& lo, const CVecRef& up, const CVecRef& los,
+bool within(const CVecRef& cx, const CVecRef& lo, const CVecRef& up, const CVecRef& los,
             const CVecRef& ups) {
   for (Index i = 0; i < cx.size(); ++i) {
     if (cx(i) < lo(i) - kFeasTol * los(i) || cx(i) > up(i) + kFeasTol * ups(i)) return false;
@@ -25,7 +25,7 @@ double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
-double mth_singular(const VectorXd& s, Index m, Index r, double thr) {
+double mth_singular(const CVecRef& s, Index m, Index r, double thr) {
   if (m == 0) return kInf;
   if (m > r || m > s.size()) return 0.0;
   const double v = s(m - 1);
@@ -57,6 +57,71 @@ void LevelData::finish() {
   }
   a_scale = A.size() ? A.cwiseAbs().maxCoeff() : 0.0;
   c_scale = C.size() ? C.cwiseAbs().maxCoeff() : 0.0;
+}
+
+void Slot::reserve(Index n, Index me, Index mi, Index P, Index total_in) {
+  const Index nq = n + mi;  // the QP's variables: reduced coordinates and the level's slacks
+  Ak.reserve(me, n);
+  Ck.reserve(mi, n);
+  Gk.reserve(P, n);
+  Z.reserve(n, n);
+  E.reserve(me + mi, n);
+  Msig.reserve(me + mi, n);
+  H.reserve(nq, nq);
+  Cq.reserve(mi + P, nq);
+  y.reserve(n);
+  ref.reserve(n);
+  g.reserve(nq);
+  v.reserve(nq);
+  qlo.reserve(mi + P);
+  qup.reserve(mi + P);
+  gx.reserve(P);
+  glr.reserve(P);
+  gur.reserve(P);
+  gxl.reserve(P);
+  w.reserve(P);
+  svals.reserve(std::min(me, n));
+  fact.reserve(me, n);
+  null_qr.reserve(me + mi, n);
+  as.reserve(me, mi, P, n, n, kMaxIter);
+  qp.reserve(nq, mi + P);
+  sv.reserve(me + mi, n);
+  bk.resize(me);
+  xl.resize(n);
+  tmp.resize(n);
+  zref.resize(n);
+  cx.resize(mi);
+  cx0.resize(mi);
+  lo_r.resize(mi);
+  up_r.resize(mi);
+  s.resize(mi);
+  violated.resize(mi);
+  // the warm-start memory of another shape is no guess (as a size mismatch before)
+  if (memo_s.size() != mi || memo_w.size() != total_in) {
+    has_guess = false;
+    memo_s.resize(mi);
+    memo_w.resize(total_in);
+  }
+  if (point.size() != n) {
+    has_point = false;
+    point.resize(n);
+  }
+}
+
+bool Hierarchy::shapes_changed(Index n) {
+  const std::size_t count = 1 + 2 * levels_.size();
+  bool same = shapes_.size() == count && shapes_[0] == n;
+  for (std::size_t k = 0; same && k < levels_.size(); ++k) {
+    same = shapes_[1 + 2 * k] == levels_[k].A.rows() && shapes_[2 + 2 * k] == levels_[k].C.rows();
+  }
+  if (same) return false;
+  shapes_.resize(count);
+  shapes_[0] = n;
+  for (std::size_t k = 0; k < levels_.size(); ++k) {
+    shapes_[1 + 2 * k] = levels_[k].A.rows();
+    shapes_[2 + 2 * k] = levels_[k].C.rows();
+  }
+  return true;
 }
 
 void Hierarchy::resize_levels(std::size_t count) {
@@ -95,6 +160,20 @@ std::string Hierarchy::solve(Index n, Index user_levels) {
   x_.setZero();
   Index total_in = 0;
   for (const LevelData& lv : levels_) total_in += lv.C.rows();
+  if (shapes_changed(n)) {
+    // the structure changed: every workspace reserved for the largest shape of its level
+    Index P = 0;
+    for (Index k = 0; k < NL; ++k) {
+      const LevelData& lv = levels_[k];
+      slots_[k].reserve(n, lv.A.rows(), lv.C.rows(), P, total_in);
+      if (k < user_levels) {
+        results_[k].residual_eq.resize(lv.A.rows());
+        results_[k].violation_in.resize(lv.C.rows());
+        results_[k].state.resize(lv.C.rows());
+      }
+      P += lv.C.rows();
+    }
+  }
   if (G_.rows() != total_in || G_.cols() != n) G_.resize(total_in, n);
   gl_.resize(total_in);
   gu_.resize(total_in);
@@ -104,7 +183,7 @@ std::string Hierarchy::solve(Index n, Index user_levels) {
   gtmp_.resize(total_in);
   Index p = 0;
   Index off = 0;
-  const MatrixXd* Z = nullptr;  // nullptr: identity
+  const WorkM* Z = nullptr;  // nullptr: identity
   Index r = n;
   enum class Null { kNone, kEmpty, kFact, kViolated };
 
@@ -121,186 +200,180 @@ std::string Hierarchy::solve(Index n, Index user_levels) {
       off += mi;
       continue;
     }
+    const CMapM Zm = Z ? Z->mat() : CMapM(nullptr, 0, 0);  // the basis (n, r) of this level
     const bool carried = p > 0;
     auto G = G_.topRows(p);
     auto gl = gl_.head(p);
     auto gu = gu_.head(p);
     auto gls = gls_.head(p);
     auto gus = gus_.head(p);
-    slot.Ak.resize(me, r);
+    MapM Ak = slot.Ak.mat(me, r);
     if (Z)
-      slot.Ak.noalias() = lv.A * (*Z);
+      Ak.noalias() = lv.A * Zm;
     else
-      slot.Ak = lv.A;
+      Ak = lv.A;
     slot.projected = true;
-    slot.bk.resize(me);
     slot.bk = lv.b;
     slot.bk.noalias() -= lv.A * x_;
     // 1. least squares on the equality rows
     const bool ws = settings_.warm_start && warm_slot(slot);
     bool have_warm = false;
+    MapI w = slot.w.vec(p);
     if (ws && (mi || carried)) {
       have_warm = slot.has_guess && slot.memo_s.size() == mi && slot.memo_w.size() == total_in &&
                   slot.has_point && slot.point.size() == n;
       if (have_warm) {
         slot.s = slot.memo_s;
-        slot.w.resize(p);
-        for (Index j = 0; j < p; ++j) slot.w(j) = slot.memo_w(gid_(j));
+        for (Index j = 0; j < p; ++j) w(j) = slot.memo_w(gid_(j));
       }
     }
     bool deferred;
     if (ws) {
-      deferred = have_warm && (slot.s.any() || slot.w.any());
+      deferred = have_warm && (slot.s.any() || w.any());
     } else {
       deferred = (mi > 0 || carried) && slot.needed_qp && slot.nq_mi == mi && slot.nq_r == r &&
                  slot.nq_p == p;
     }
     bool y_none = true;
     Null null = Null::kNone;
-    slot.y.resize(r);
+    MapV y = slot.y.vec(r);
     if (deferred) {
       // the previous solve needed this level's inequalities: straight to its active set
     } else if (lv.kind == LevelKind::kNorm) {
       if (Z)
-        slot.y.noalias() = Z->transpose() * slot.bk;
+        y.noalias() = Zm.transpose() * slot.bk;
       else
-        slot.y = slot.bk;
+        y = slot.bk;
       y_none = false;
       null = Null::kEmpty;
     } else if (me) {
-      slot.fact.compute(slot.Ak, rank_tol, lv.a_scale);
+      slot.fact.compute(Ak, rank_tol, lv.a_scale);
       slot.has_fact = true;
-      slot.fact.lstsq(slot.bk, slot.y);
+      slot.fact.lstsq(slot.bk, y);
       y_none = false;
       null = Null::kFact;
     }
-    slot.xl.resize(n);
     slot.xl = x_;
     if (!y_none) {
       if (Z)
-        slot.xl.noalias() += (*Z) * slot.y;
+        slot.xl.noalias() += Zm * y;
       else
-        slot.xl += slot.y;
+        slot.xl += y;
     }
     // 2. does the least-squares point satisfy the inequalities?
     bool feasible = !deferred;
-    slot.cx.resize(mi);
     if (mi && feasible) {
       slot.cx.noalias() = lv.C * slot.xl;
       feasible = within(slot.cx, lv.lo, lv.up, lv.los, lv.ups);
     }
     if (feasible && carried) {
-      slot.gxl.resize(p);
-      slot.gxl.noalias() = G * slot.xl;
-      feasible = within(slot.gxl, gl, gu, gls, gus);
+      MapV gxl = slot.gxl.vec(p);
+      gxl.noalias() = G * slot.xl;
+      feasible = within(gxl, gl, gu, gls, gus);
     }
     bool has_violated = false;
     bool qp_point = false;
-    slot.violated.resize(mi);
     slot.violated.setZero();
     if (!feasible) {
-      slot.Ck.resize(mi, r);
+      MapM Ck = slot.Ck.mat(mi, r);
       if (Z)
-        slot.Ck.noalias() = lv.C * (*Z);
+        Ck.noalias() = lv.C * Zm;
       else
-        slot.Ck = lv.C;
-      slot.gx.resize(p);
-      slot.gx.noalias() = G * x_;
-      slot.cx0.resize(mi);
+        Ck = lv.C;
+      MapV gx = slot.gx.vec(p);
+      gx.noalias() = G * x_;
       slot.cx0.noalias() = lv.C * x_;
       slot.lo_r = lv.lo - slot.cx0;
       slot.up_r = lv.up - slot.cx0;
-      slot.glr = gl - slot.gx;
-      slot.gur = gu - slot.gx;
+      MapV glr = slot.glr.vec(p), gur = slot.gur.vec(p);
+      glr = gl - gx;
+      gur = gu - gx;
       const double scale = std::max(lv.a_scale, lv.c_scale);
-      const LevelRows rows{slot.Ak, slot.bk, slot.Ck, slot.lo_r, slot.up_r, lv.los, lv.ups};
-      const CarriedRows held{G, slot.glr, slot.gur, gls, gus, Z};
+      const LevelRows rows{Ak, slot.bk, Ck, slot.lo_r, slot.up_r, lv.los, lv.ups};
+      const CarriedRows held{G, glr, gur, gls, gus, Z};
       bool y_ok = false;
       // 3a. the previous solve's active set (or the least-squares point's), verified
       if (ws) {
-        slot.ref.resize(r);
-        slot.tmp.resize(n);
+        MapV ref = slot.ref.vec(r);
         if (!have_warm) {
           slot.tmp = slot.xl - x_;
           if (Z)
-            slot.ref.noalias() = Z->transpose() * slot.tmp;
+            ref.noalias() = Zm.transpose() * slot.tmp;
           else
-            slot.ref = slot.tmp;
-          slot.qlo.resize(mi);
-          slot.qup.resize(p);
-          if (mi) slot.qlo.noalias() = slot.Ck * slot.ref;
+            ref = slot.tmp;
+          MapV qlo = slot.qlo.vec(mi), qup = slot.qup.vec(p);
+          if (mi) qlo.noalias() = Ck * ref;
           if (carried) {
             if (Z) {
-              slot.zref.resize(n);
-              slot.zref.noalias() = (*Z) * slot.ref;
-              slot.qup.noalias() = G * slot.zref;
+              slot.zref.noalias() = Zm * ref;
+              qup.noalias() = G * slot.zref;
             } else {
-              slot.qup.noalias() = G * slot.ref;
+              qup.noalias() = G * ref;
             }
           }
-          guess_from_point(mi ? &slot.qlo : nullptr, slot.lo_r, slot.up_r, lv.los, lv.ups,
-                           carried ? &slot.qup : nullptr, slot.glr, slot.gur, gls, gus,
-                           -kFeasTol, slot.s, slot.w);
+          guess_from_point(mi ? qlo.data() : nullptr, slot.lo_r, slot.up_r, lv.los, lv.ups,
+                           carried ? qup.data() : nullptr, glr, gur, gls, gus, -kFeasTol,
+                           slot.s, w);
         } else {
           slot.tmp = slot.point - x_;
           if (Z)
-            slot.ref.noalias() = Z->transpose() * slot.tmp;
+            ref.noalias() = Zm.transpose() * slot.tmp;
           else
-            slot.ref = slot.tmp;
+            ref = slot.tmp;
         }
-        y_ok = slot.as.solve(rows, held, slot.s, slot.w, rank_tol, scale, kMaxIter, &slot.ref,
-                             slot.y);
+        y_ok = slot.as.solve(rows, held, slot.s, w, rank_tol, scale, kMaxIter, ref.data(), y);
       }
       bool ok = true;
       if (!y_ok) {
         // 3b. QP in the reduced coordinates (and the level's slacks): G Z formed here only
         ++qp_count_;
-        slot.Gk.resize(p, r);
+        MapM Gk = slot.Gk.mat(p, r);
         if (Z)
-          slot.Gk.noalias() = G * (*Z);
+          Gk.noalias() = G * Zm;
         else
-          slot.Gk = G;
+          Gk = G;
         qp_point = true;
         const Index nq = r + mi;
-        slot.H.resize(nq, nq);
-        slot.H.setZero();
-        slot.H.topLeftCorner(r, r).noalias() = slot.Ak.transpose() * slot.Ak;
-        slot.g.resize(nq);
-        slot.g.setZero();
-        slot.g.head(r).noalias() = slot.Ak.transpose() * slot.bk;
-        slot.g.head(r) *= -1.0;
-        slot.Cq.resize(mi + p, nq);
-        slot.Cq.setZero();
-        slot.qlo.resize(mi + p);
-        slot.qup.resize(mi + p);
+        MapM H = slot.H.mat(nq, nq);
+        H.setZero();
+        H.topLeftCorner(r, r).noalias() = Ak.transpose() * Ak;
+        MapV g = slot.g.vec(nq);
+        g.setZero();
+        g.head(r).noalias() = Ak.transpose() * slot.bk;
+        g.head(r) *= -1.0;
+        MapM Cq = slot.Cq.mat(mi + p, nq);
+        Cq.setZero();
+        MapV qlo = slot.qlo.vec(mi + p), qup = slot.qup.vec(mi + p);
         if (mi) {
-          slot.H.bottomRightCorner(mi, mi).setIdentity();
-          slot.Cq.topLeftCorner(mi, r) = slot.Ck;
-          slot.Cq.block(0, r, mi, mi).setIdentity();
-          slot.Cq.block(0, r, mi, mi) *= -1.0;
-          slot.qlo.head(mi) = slot.lo_r;
-          slot.qup.head(mi) = slot.up_r;
+          H.bottomRightCorner(mi, mi).setIdentity();
+          Cq.topLeftCorner(mi, r) = Ck;
+          Cq.block(0, r, mi, mi).setIdentity();
+          Cq.block(0, r, mi, mi) *= -1.0;
+          qlo.head(mi) = slot.lo_r;
+          qup.head(mi) = slot.up_r;
         }
         if (carried) {
-          slot.Cq.bottomLeftCorner(p, r) = slot.Gk;
-          slot.qlo.tail(p) = slot.glr;
-          slot.qup.tail(p) = slot.gur;
+          Cq.bottomLeftCorner(p, r) = Gk;
+          qlo.tail(p) = glr;
+          qup.tail(p) = gur;
         }
-        ok = slot.qp.solve(slot.H, slot.g, slot.Cq, slot.qlo, slot.qup, slot.v);
-        slot.y = slot.v.head(r);
-        if (ws && slot.y.allFinite()) {
+        MapV v = slot.v.vec(nq);
+        ok = slot.qp.solve(H, g, Cq, qlo, qup, v);
+        y = v.head(r);
+        if (ws && y.allFinite()) {
           // polish: the QP point's active set, solved exactly if it verifies
-          slot.qlo.resize(mi);
-          slot.qup.resize(p);
-          if (mi) slot.qlo.noalias() = slot.Ck * slot.y;
-          if (carried) slot.qup.noalias() = slot.Gk * slot.y;
-          guess_from_point(mi ? &slot.qlo : nullptr, slot.lo_r, slot.up_r, lv.los, lv.ups,
-                           carried ? &slot.qup : nullptr, slot.glr, slot.gur, gls, gus,
-                           kActiveTol, slot.s, slot.w);
-          slot.ref = slot.y;
-          if (slot.as.solve(rows, held, slot.s, slot.w, rank_tol, scale, kPolishIter, &slot.ref,
-                            slot.v)) {
-            slot.y = slot.v;
+          MapV plo = slot.qlo.vec(mi), pup = slot.qup.vec(p);
+          if (mi) plo.noalias() = Ck * y;
+          if (carried) pup.noalias() = Gk * y;
+          guess_from_point(mi ? plo.data() : nullptr, slot.lo_r, slot.up_r, lv.los, lv.ups,
+                           carried ? pup.data() : nullptr, glr, gur, gls, gus, kActiveTol,
+                           slot.s, w);
+          MapV ref = slot.ref.vec(r);
+          ref = y;
+          MapV vp = slot.v.vec(r);
+          if (slot.as.solve(rows, held, slot.s, w, rank_tol, scale, kPolishIter, ref.data(),
+                            vp)) {
+            y = vp;
             ok = true;
           } else {
             slot.warm_skip = kWarmSkip;
@@ -311,27 +384,25 @@ std::string Hierarchy::solve(Index n, Index user_levels) {
       (void)ok;
       if (ws) {
         slot.memo_s = slot.s;
-        slot.memo_w.resize(total_in);
         slot.memo_w.setZero();
-        for (Index j = 0; j < p; ++j) slot.memo_w(gid_(j)) = slot.w(j);
+        for (Index j = 0; j < p; ++j) slot.memo_w(gid_(j)) = w(j);
         slot.has_guess = true;  // (as the reference: kept even after a failed polish)
-        slot.point.resize(n);
         slot.point = x_;
         if (Z)
-          slot.point.noalias() += (*Z) * slot.y;
+          slot.point.noalias() += Zm * y;
         else
-          slot.point += slot.y;
+          slot.point += y;
         slot.has_point = true;
       }
-      if (!slot.y.allFinite()) {
+      if (!y.allFinite()) {
         return "level " + std::to_string(k) +
                ": the native QP (DAQP) returned a non-finite solution";
       }
       slot.xl = x_;
       if (Z)
-        slot.xl.noalias() += (*Z) * slot.y;
+        slot.xl.noalias() += Zm * y;
       else
-        slot.xl += slot.y;
+        slot.xl += y;
       if (mi) {
         slot.cx.noalias() = lv.C * slot.xl;
         for (Index i = 0; i < mi; ++i) {
@@ -353,25 +424,25 @@ std::string Hierarchy::solve(Index n, Index user_levels) {
     // 4. shrink the basis: equality rows and violated rows become equalities
     if (has_violated) {
       const Index nv = slot.violated.sum();
-      slot.E.resize(me + nv, r);
-      if (me) slot.E.topRows(me) = slot.Ak;
+      MapM E = slot.E.mat(me + nv, r);
+      if (me) E.topRows(me) = Ak;
       double cmax = 0.0;
       for (Index i = 0, j = me; i < mi; ++i) {
         if (!slot.violated(i)) continue;
         if (Z)
-          slot.E.row(j).noalias() = lv.C.row(i) * (*Z);
+          E.row(j).noalias() = lv.C.row(i) * Zm;
         else
-          slot.E.row(j) = lv.C.row(i);
+          E.row(j) = lv.C.row(i);
         cmax = std::max(cmax, lv.C.row(i).cwiseAbs().maxCoeff());
         ++j;
       }
-      slot.null_qr.compute(slot.E, rank_tol, std::max(lv.a_scale, cmax));
+      slot.null_qr.compute(E, rank_tol, std::max(lv.a_scale, cmax));
       null = Null::kViolated;
     } else if (deferred) {
       if (lv.kind == LevelKind::kNorm) {
         null = Null::kEmpty;
       } else if (me) {
-        slot.fact.compute(slot.Ak, rank_tol, lv.a_scale);
+        slot.fact.compute(Ak, rank_tol, lv.a_scale);
         slot.has_fact = true;
         null = Null::kFact;
       } else {
@@ -381,15 +452,15 @@ std::string Hierarchy::solve(Index n, Index user_levels) {
     x_ = slot.xl;
     if (null != Null::kNone) {
       if (null == Null::kEmpty) {
-        slot.Z.resize(n, 0);
+        slot.Z.mat(n, 0);
       } else {
         PivotedQR& f = null == Null::kFact ? slot.fact : slot.null_qr;
-        const MatrixXd& N = f.null();
-        slot.Z.resize(n, N.cols());
+        const CMapM N = f.null();
+        MapM Zn = slot.Z.mat(n, N.cols());
         if (Z)
-          slot.Z.noalias() = (*Z) * N;
+          Zn.noalias() = Zm * N;
         else
-          slot.Z = N;
+          Zn = N;
       }
       Z = &slot.Z;
       r = slot.Z.cols();
@@ -464,34 +535,42 @@ double Hierarchy::sigma_level(Index k) {
   const Index m = me + n_act;
   if (m == 0) return kInf;
   if (!slot.projected) return 0.0;
-  const Index r = slot.Ak.cols();
+  const MapM Ak = slot.Ak.mat();
+  const Index r = Ak.cols();
   if (m > r) return 0.0;
   double scale = lv.a_scale;
-  const VectorXd* s;
+  const double* s_data;
+  Index s_size;
   if (n_act) {
-    slot.Msig.resize(m, r);
-    if (me) slot.Msig.topRows(me) = slot.Ak;
+    MapM Msig = slot.Msig.mat(m, r);
+    if (me) Msig.topRows(me) = Ak;
     double cmax = 0.0;
     for (Index i = 0, j = me; i < out.state.size(); ++i) {
       if (!out.state(i)) continue;
       if (slot.Zb)
-        slot.Msig.row(j).noalias() = lv.C.row(i) * (*slot.Zb);
+        Msig.row(j).noalias() = lv.C.row(i) * slot.Zb->mat();
       else
-        slot.Msig.row(j) = lv.C.row(i);
+        Msig.row(j) = lv.C.row(i);
       cmax = std::max(cmax, lv.C.row(i).cwiseAbs().maxCoeff());
       ++j;
     }
     scale = std::max(scale, cmax);
-    s = &slot.sv.compute(slot.Msig, settings_.rank_tol, scale);
+    const CMapV sv = slot.sv.compute(Msig, settings_.rank_tol, scale);
+    s_data = sv.data();
+    s_size = sv.size();
   } else if (slot.has_fact) {
-    slot.svals.resize(std::min(slot.fact.rows(), slot.fact.cols()));
-    slot.fact.singular_values(slot.svals, settings_.rank_tol, scale);
-    s = &slot.svals;
+    MapV sv = slot.svals.vec(std::min(slot.fact.rows(), slot.fact.cols()));
+    slot.fact.singular_values(sv, settings_.rank_tol, scale);
+    s_data = sv.data();
+    s_size = sv.size();
   } else {
-    s = &slot.sv.compute(slot.Ak, settings_.rank_tol, scale);
+    const CMapV sv = slot.sv.compute(Ak, settings_.rank_tol, scale);
+    s_data = sv.data();
+    s_size = sv.size();
   }
-  const double s0 = s->size() ? (*s)(0) : 0.0;
-  return mth_singular(*s, m, r, settings_.rank_tol * std::max(s0, scale));
+  const CMapV s(s_data, s_size);
+  const double s0 = s.size() ? s(0) : 0.0;
+  return mth_singular(s, m, r, settings_.rank_tol * std::max(s0, scale));
 }
 
 }  // namespace hqp

@@ -2,8 +2,11 @@
 // active-set warm start (the C++ twin of hqp.solver.basis.BasisAlgorithm, run by HierarchicalSolver with
 // algorithm="basis"; see that module's docstring for the method and the constants).
 //
-// Structure and workspace apart (pinocchio's Model/Data): a Hierarchy is sized by the
-// shapes of the levels it last solved; while those hold, solve() allocates nothing.
+// Structure and workspace apart (pinocchio's Model/Data): when the shapes of the levels
+// change (n, each level's equality and inequality row counts), solve() reserves every
+// workspace for the largest shape each level can take (its rows, n, the inequality rows of
+// the levels above); while the level shapes hold, solve() allocates nothing, whatever the
+// active sets, ranks and carried rows of each solve.
 #pragma once
 
 #include <string>
@@ -65,19 +68,24 @@ struct Slot {
   int warm_skip = 0;
   bool needed_qp = false;
   Index nq_mi = -1, nq_r = -1, nq_p = -1;
-  // workspace
-  MatrixXd Ak, Ck, Gk, Z, E, H, Cq;
-  VectorXd bk, y, xl, cx, cx0, gx, lo_r, up_r, glr, gur, ref, g, qlo, qup, v, gxl, tmp, zref;
-  IVec s, w, violated;
+  // workspace: sizes fixed by the level shapes (me, mi, n) ...
+  VectorXd bk, xl, cx, cx0, lo_r, up_r, tmp, zref;
+  IVec s, violated;
+  // ... and fixed-capacity storage for the shapes that vary from solve to solve (the basis
+  // size r, the carried rows p, the QP's r + mi)
+  WorkM Ak, Ck, Gk, Z, E, H, Cq, Msig;
+  WorkM y, gx, glr, gur, ref, g, qlo, qup, v, gxl, svals;
+  WorkI w;
   PivotedQR fact, null_qr;
   bool has_fact = false;
   bool projected = false;  // Ak holds A Zb (for the report's sigma)
-  const MatrixXd* Zb = nullptr;  // basis before this level (nullptr: identity)
+  const WorkM* Zb = nullptr;  // basis before this level (nullptr: identity)
   ActiveSetSolver as;
   LevelQP qp;
   SingularValues sv;
-  MatrixXd Msig;
-  VectorXd svals;
+  /// Capacity for a level of me equality and mi inequality rows over n variables below
+  /// levels of P inequality rows in all; the fixed-size members sized.
+  void reserve(Index n, Index me, Index mi, Index P, Index total_in);
 };
 
 class Hierarchy {
@@ -101,6 +109,8 @@ class Hierarchy {
 
  private:
   bool warm_slot(Slot& slot);
+  /// Whether the level shapes differ from the last solve's (then recorded).
+  bool shapes_changed(Index n);
   void report(Index k);
   double sigma_level(Index k);
 
@@ -112,6 +122,7 @@ class Hierarchy {
   MatrixXd G_;
   VectorXd gl_, gu_, gls_, gus_, gtmp_;
   IVec gid_;
+  std::vector<Index> shapes_;  // n, then (me, mi) per level, of the last solve
   int qp_count_ = 0;
   double final_seconds_ = 0.0;
   Index n_ = -1;

@@ -3,6 +3,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
+#include <utility>
 
 namespace hqp {
 
@@ -14,20 +16,91 @@ void set_malloc_allowed(bool allowed) {
 #endif
 }
 
+// ---------------------------------------------------------------------------------------
+// ColPivQR: Eigen 3.4's ColPivHouseholderQR::computeInPlace, on this object's storage
+
+void ColPivQR::reserve(Index rows, Index cols) {
+  qr_.reserve(rows, cols);
+  hc_.reserve(std::min(rows, cols));
+  temp_.reserve(cols + 1);
+  nu_.reserve(cols);
+  nd_.reserve(cols);
+  perm_.reserve(cols);
+}
+
+void ColPivQR::factor() {
+  MapM qr = qr_.mat();
+  const Index rows = qr.rows(), cols = qr.cols();
+  const Index size = std::min(rows, cols);
+  MapV hc = hc_.vec(size);
+  MapV temp = temp_.vec(cols + 1);
+  MapV nu = nu_.vec(cols), nd = nd_.vec(cols);
+  MapI perm = perm_.vec(cols);
+  for (Index k = 0; k < cols; ++k) {
+    perm(k) = int(k);
+    nd(k) = qr.col(k).norm();
+    nu(k) = nd(k);
+  }
+  if (size == 0) return;
+  // (Eigen also counts the nonzero pivots here; the callers decide the rank themselves)
+  const double eps = std::numeric_limits<double>::epsilon();
+  const double norm_downdate_threshold = std::sqrt(eps);
+  for (Index k = 0; k < size; ++k) {
+    Index biggest;
+    nu.tail(cols - k).maxCoeff(&biggest);
+    biggest += k;
+    if (k != biggest) {
+      qr.col(k).swap(qr.col(biggest));
+      std::swap(nu(k), nu(biggest));
+      std::swap(nd(k), nd(biggest));
+      std::swap(perm(k), perm(biggest));
+    }
+    double beta;
+    qr.col(k).tail(rows - k).makeHouseholderInPlace(hc(k), beta);
+    qr(k, k) = beta;
+    qr.bottomRightCorner(rows - k, cols - k - 1)
+        .applyHouseholderOnTheLeft(qr.col(k).tail(rows - k - 1), hc(k), &temp(k + 1));
+    for (Index j = k + 1; j < cols; ++j) {
+      if (nu(j) != 0.0) {
+        double t = std::abs(qr(k, j)) / nu(j);
+        t = (1.0 + t) * (1.0 - t);
+        t = t < 0.0 ? 0.0 : t;
+        const double t2 = t * Eigen::numext::abs2(nu(j) / nd(j));
+        if (t2 <= norm_downdate_threshold) {
+          nd(j) = qr.col(j).tail(rows - k - 1).norm();
+          nu(j) = nd(j);
+        } else {
+          nu(j) *= std::sqrt(t);
+        }
+      }
+    }
+  }
+}
+
+// ---------------------------------------------------------------------------------------
+// PivotedQR
+
+void PivotedQR::reserve(Index m, Index r, Index right_rows) {
+  const Index d = std::min(m, r);
+  qr_.reserve(r, m);
+  lqr_.reserve(m, d);
+  N_.reserve(r, r);
+  Rsq_.reserve(d, m);
+  ws_.reserve(1);
+  wsn_.reserve(r);
+  wsr_.reserve(right_rows);
+  z_.reserve(d);
+  c_.reserve(m);
+  sv_.reserve(d, m);
+}
+
 void PivotedQR::factor(const CMatRef& M) {
   m_ = M.rows();
   r_ = M.cols();
-  Mt_.resize(r_, m_);
-  Mt_.noalias() = M.transpose();
   n_ready_ = false;
-  perm_.resize(m_);
-  if (m_ == 0 || r_ == 0) {
-    for (Index i = 0; i < m_; ++i) perm_(i) = i;
-    return;
-  }
-  qr_.compute(Mt_);
-  const auto& P = qr_.colsPermutation().indices();
-  for (Index i = 0; i < m_; ++i) perm_(i) = P(i);
+  MapM Mt = qr_.input(r_, m_);
+  Mt.noalias() = M.transpose();
+  qr_.factor();  // (for an empty M: the identity permutation)
 }
 
 void PivotedQR::compute(const CMatRef& M, double rank_tol, double scale) {
@@ -35,7 +108,7 @@ void PivotedQR::compute(const CMatRef& M, double rank_tol, double scale) {
   rank_ = 0;
   const Index d = std::min(m_, r_);
   if (d == 0) return;
-  const auto& R = qr_.matrixQR();
+  const CMapM R = qr_.matrixQR();
   const double top = std::max(std::abs(R(0, 0)), scale);
   for (Index i = 0; i < d; ++i) {
     if (std::abs(R(i, i)) > rank_tol * top) ++rank_;
@@ -47,61 +120,61 @@ void PivotedQR::compute_relative(const CMatRef& M, double rank_tol) {
   rank_ = 0;
   const Index d = std::min(m_, r_);
   if (d == 0) return;
-  const auto& R = qr_.matrixQR();
+  const CMapM R = qr_.matrixQR();
   const double top = std::abs(R(0, 0));
   for (Index i = 0; i < d; ++i) {
     if (std::abs(R(i, i)) > rank_tol * top) ++rank_;
   }
 }
 
-const MatrixXd& PivotedQR::null() {
+CMapM PivotedQR::null() {
   if (!n_ready_) {
     const Index c = r_ - rank_;
-    N_.resize(r_, c);
-    N_.setZero();
-    N_.bottomRows(c).setIdentity();
+    MapM N = N_.mat(r_, c);
+    N.setZero();
+    N.bottomRows(c).setIdentity();
     if (m_ && r_) {
-      const auto& QR = qr_.matrixQR();
-      const auto& tau = qr_.hCoeffs();
-      wsn_.resize(c);
+      const CMapM QR = qr_.matrixQR();
+      const CMapV tau = qr_.hCoeffs();
+      MapV wsn = wsn_.vec(c);
       for (Index i = tau.size() - 1; i >= 0; --i) {
-        N_.bottomRows(r_ - i).applyHouseholderOnTheLeft(QR.col(i).tail(r_ - i - 1), tau(i),
-                                                        wsn_.data());
+        N.bottomRows(r_ - i).applyHouseholderOnTheLeft(QR.col(i).tail(r_ - i - 1), tau(i),
+                                                       wsn.data());
       }
     }
     n_ready_ = true;
   }
-  return N_;
+  return CMapM(N_.data(), N_.rows(), N_.cols());
 }
 
 void PivotedQR::apply_q(VecRef v) {
   if (!m_ || !r_) return;
-  const auto& QR = qr_.matrixQR();
-  const auto& tau = qr_.hCoeffs();
-  ws_.resize(1);
+  const CMapM QR = qr_.matrixQR();
+  const CMapV tau = qr_.hCoeffs();
+  MapV ws = ws_.vec(1);
   for (Index i = tau.size() - 1; i >= 0; --i) {
-    v.tail(r_ - i).applyHouseholderOnTheLeft(QR.col(i).tail(r_ - i - 1), tau(i), ws_.data());
+    v.tail(r_ - i).applyHouseholderOnTheLeft(QR.col(i).tail(r_ - i - 1), tau(i), ws.data());
   }
 }
 
 void PivotedQR::apply_qt(VecRef v) {
   if (!m_ || !r_) return;
-  const auto& QR = qr_.matrixQR();
-  const auto& tau = qr_.hCoeffs();
-  ws_.resize(1);
+  const CMapM QR = qr_.matrixQR();
+  const CMapV tau = qr_.hCoeffs();
+  MapV ws = ws_.vec(1);
   for (Index i = 0; i < tau.size(); ++i) {
-    v.tail(r_ - i).applyHouseholderOnTheLeft(QR.col(i).tail(r_ - i - 1), tau(i), ws_.data());
+    v.tail(r_ - i).applyHouseholderOnTheLeft(QR.col(i).tail(r_ - i - 1), tau(i), ws.data());
   }
 }
 
 void PivotedQR::apply_q_right(MatRef A) {
   if (!m_ || !r_) return;
-  const auto& QR = qr_.matrixQR();
-  const auto& tau = qr_.hCoeffs();
-  wsr_.resize(A.rows());
+  const CMapM QR = qr_.matrixQR();
+  const CMapV tau = qr_.hCoeffs();
+  MapV wsr = wsr_.vec(A.rows());
   for (Index i = 0; i < tau.size(); ++i) {
     A.rightCols(r_ - i).applyHouseholderOnTheRight(QR.col(i).tail(r_ - i - 1), tau(i),
-                                                    wsr_.data());
+                                                    wsr.data());
   }
 }
 
@@ -111,32 +184,31 @@ void PivotedQR::lstsq(const CVecRef& rhs, VecRef y) {
     y.setZero();
     return;
   }
-  const auto& R = qr_.matrixQR();
-  c_.resize(m_);
-  for (Index i = 0; i < m_; ++i) c_(i) = rhs(perm_(i));
-  z_.resize(k);
+  const CMapM R = qr_.matrixQR();
+  MapV c = c_.vec(m_);
+  for (Index i = 0; i < m_; ++i) c(i) = rhs(qr_.perm(i));
+  MapV z = z_.vec(k);
   if (m_ == k) {
     // square lower-triangular R11^T: one triangular solve
-    z_ = c_.head(k);
-    R.topLeftCorner(k, k).transpose().triangularView<Eigen::Lower>().solveInPlace(z_);
+    z = c.head(k);
+    R.topLeftCorner(k, k).transpose().triangularView<Eigen::Lower>().solveInPlace(z);
   } else {
     // more rows than rank: least squares on the (m, k) trapezoid L = R[:k, :]^T, of full
     // column rank k (a second pivoted QR; its reflectors applied by hand, no temporaries)
-    L_.resize(m_, k);
-    L_.noalias() = R.topRows(k).transpose();
-    L_.triangularView<Eigen::StrictlyUpper>().setZero();
-    lqr_.compute(L_);
-    const auto& QR2 = lqr_.matrixQR();
-    const auto& tau = lqr_.hCoeffs();
-    ws_.resize(1);
+    MapM L = lqr_.input(m_, k);
+    L.noalias() = R.topRows(k).transpose();
+    L.triangularView<Eigen::StrictlyUpper>().setZero();
+    lqr_.factor();
+    const CMapM QR2 = lqr_.matrixQR();
+    const CMapV tau = lqr_.hCoeffs();
+    MapV ws = ws_.vec(1);
     for (Index i = 0; i < k; ++i) {
-      c_.tail(m_ - i).applyHouseholderOnTheLeft(QR2.col(i).tail(m_ - i - 1), tau(i), ws_.data());
+      c.tail(m_ - i).applyHouseholderOnTheLeft(QR2.col(i).tail(m_ - i - 1), tau(i), ws.data());
     }
-    QR2.topLeftCorner(k, k).triangularView<Eigen::Upper>().solveInPlace(c_.head(k));
-    const auto& P2 = lqr_.colsPermutation().indices();
-    for (Index i = 0; i < k; ++i) z_(P2(i)) = c_(i);
+    QR2.topLeftCorner(k, k).triangularView<Eigen::Upper>().solveInPlace(c.head(k));
+    for (Index i = 0; i < k; ++i) z(lqr_.perm(i)) = c(i);
   }
-  y.head(k) = z_;
+  y.head(k) = z;
   y.tail(r_ - k).setZero();
   apply_q(y);
 }
@@ -147,52 +219,140 @@ void PivotedQR::particular(const CVecRef& kv, VecRef y) {
     y.setZero();
     return;
   }
-  z_.resize(k);
-  for (Index i = 0; i < k; ++i) z_(i) = kv(perm_(i));
-  qr_.matrixQR().topLeftCorner(k, k).transpose().triangularView<Eigen::Lower>().solveInPlace(z_);
-  y.head(k) = z_;
+  MapV z = z_.vec(k);
+  for (Index i = 0; i < k; ++i) z(i) = kv(qr_.perm(i));
+  qr_.matrixQR().topLeftCorner(k, k).transpose().triangularView<Eigen::Lower>().solveInPlace(z);
+  y.head(k) = z;
   y.tail(r_ - k).setZero();
   apply_q(y);
 }
 
-void PivotedQR::multipliers(const CVecRef& c, VecRef mu) {
+void PivotedQR::multipliers(const CVecRef& cv, VecRef mu) {
   const Index k = rank_;
   mu.setZero();
   if (k == 0) return;
-  z_.resize(k);
-  z_ = c;
-  qr_.matrixQR().topLeftCorner(k, k).triangularView<Eigen::Upper>().solveInPlace(z_);
-  for (Index i = 0; i < k; ++i) mu(perm_(i)) = z_(i);
+  MapV z = z_.vec(k);
+  z = cv;
+  qr_.matrixQR().topLeftCorner(k, k).triangularView<Eigen::Upper>().solveInPlace(z);
+  for (Index i = 0; i < k; ++i) mu(qr_.perm(i)) = z(i);
 }
 
 void PivotedQR::singular_values(VecRef s, double rank_tol, double scale) {
   const Index d = std::min(m_, r_);
   if (d == 0) return;
-  Rsq_.resize(d, m_);
-  Rsq_ = qr_.matrixQR().topRows(d).triangularView<Eigen::Upper>();
-  sv_.compute(Rsq_, s, rank_tol, scale);
+  MapM Rsq = Rsq_.mat(d, m_);
+  Rsq = qr_.matrixQR().topRows(d).triangularView<Eigen::Upper>();
+  sv_.compute(Rsq, s, rank_tol, scale);
 }
 
-void TriangularSingularValues::compute(const MatrixXd& T, VecRef s, double rank_tol,
+// ---------------------------------------------------------------------------------------
+// TriangularSingularValues
+
+void TriangularSingularValues::reserve(Index d, Index c) {
+  G_.reserve(d, d);
+  diag_.reserve(d);
+  sub_.reserve(d);
+  hc_.reserve(d);
+  work_.reserve(d, d);
+  pre_.reserve(c, d);
+}
+
+bool TriangularSingularValues::eigenvalues(Index d) {
+  // Eigen 3.4's SelfAdjointEigenSolver::compute(G, EigenvaluesOnly), on this storage
+  MapM mat = G_.mat();
+  MapV diag = diag_.vec(d);
+  if (d == 1) {
+    diag(0) = mat(0, 0);
+    return true;
+  }
+  mat.triangularView<Eigen::StrictlyUpper>().setZero();
+  double scale = mat.cwiseAbs().maxCoeff();
+  if (scale == 0.0) scale = 1.0;
+  mat.triangularView<Eigen::Lower>() /= scale;
+  MapV sub = sub_.vec(d - 1);
+  MapV hc = hc_.vec(d - 1);
+  // (the generic branch of tridiagonalization_inplace(mat, diag, sub, hc, false), whose
+  // selector needs a plain matrix type)
+  Eigen::internal::tridiagonalization_inplace(mat, hc);
+  diag = mat.diagonal();
+  sub = mat.diagonal<-1>();
+  constexpr int kMaxIterations = Eigen::SelfAdjointEigenSolver<MatrixXd>::m_maxIterations;
+  const Eigen::ComputationInfo info =
+      Eigen::internal::computeFromTridiagonal_impl(diag, sub, kMaxIterations, false, mat);
+  diag *= scale;
+  return info == Eigen::Success;
+}
+
+void TriangularSingularValues::jacobi(const CMatRef& T, VecRef s) {
+  // Eigen 3.4's JacobiSVD<MatrixXd, ColPivHouseholderQRPreconditioner>::compute(T) without
+  // U and V, on this storage
+  const Index d = T.rows(), c = T.cols();
+  const double precision = 2.0 * std::numeric_limits<double>::epsilon();
+  const double considerAsZero = (std::numeric_limits<double>::min)();
+  double scale = T.cwiseAbs().template maxCoeff<Eigen::PropagateNaN>();
+  if (!std::isfinite(scale)) {
+    s.setConstant(std::numeric_limits<double>::quiet_NaN());
+    return;
+  }
+  if (scale == 0.0) scale = 1.0;
+  MapM W = work_.mat(d, d);
+  if (d != c) {
+    // the R-SVD step: T^T P = Q R, then the SVD of R[:d, :d]^T (upper triangle)
+    MapM At = pre_.input(c, d);
+    At.noalias() = T.transpose() / scale;
+    pre_.factor();
+    W = pre_.matrixQR().topLeftCorner(d, d).transpose().triangularView<Eigen::Lower>();
+  } else {
+    W = T / scale;
+  }
+  double maxDiagEntry = W.cwiseAbs().diagonal().maxCoeff();
+  bool finished = false;
+  while (!finished) {
+    finished = true;
+    for (Index p = 1; p < d; ++p) {
+      for (Index q = 0; q < p; ++q) {
+        const double threshold = std::max(considerAsZero, precision * maxDiagEntry);
+        if (std::abs(W(p, q)) > threshold || std::abs(W(q, p)) > threshold) {
+          finished = false;
+          Eigen::JacobiRotation<double> j_left, j_right;
+          Eigen::internal::real_2x2_jacobi_svd(W, p, q, &j_left, &j_right);
+          W.applyOnTheLeft(p, q, j_left);
+          W.applyOnTheRight(p, q, j_right);
+          maxDiagEntry = std::max(maxDiagEntry, std::max(std::abs(W(p, p)), std::abs(W(q, q))));
+        }
+      }
+    }
+  }
+  for (Index i = 0; i < d; ++i) s(i) = std::abs(W(i, i));
+  s.head(d) *= scale;
+  for (Index i = 0; i < d; ++i) {
+    Index pos;
+    const double top = s.segment(i, d - i).maxCoeff(&pos);
+    if (top == 0.0) break;
+    if (pos) std::swap(s(i), s(i + pos));
+  }
+}
+
+void TriangularSingularValues::compute(const CMatRef& T, VecRef s, double rank_tol,
                                        double scale) {
   const Index d = T.rows();
   if (d == 0) return;
-  G_.resize(d, d);
-  G_.noalias() = T * T.transpose();
-  eig_.compute(G_, Eigen::EigenvaluesOnly);
-  const VectorXd& lam = eig_.eigenvalues();  // ascending
+  MapM G = G_.mat(d, d);
+  G.noalias() = T * T.transpose();
+  const bool ok = eigenvalues(d);
+  const MapV lam = diag_.vec();  // ascending
   for (Index i = 0; i < d; ++i) s(i) = std::sqrt(std::max(lam(d - 1 - i), 0.0));
-  if (eig_.info() == Eigen::Success && s(d - 1) >= 1e-6 * s(0)) return;
-  if (eig_.info() == Eigen::Success && rank_tol > 0.0 && T.cols() == d &&
+  if (ok && s(d - 1) >= 1e-6 * s(0)) return;
+  if (ok && rank_tol > 0.0 && T.cols() == d &&
       T.diagonal().cwiseAbs().minCoeff() <= rank_tol * std::max(s(0), scale)) {
     s(d - 1) = 0.0;
     return;
   }
-  {
-    svd_.compute(T);
-    s = svd_.singularValues();
-  }
+  jacobi(T, s);
 }
+
+// ---------------------------------------------------------------------------------------
+// LeastSquares, SingularValues
 
 void LeastSquares::solve(const CMatRef& M, const CVecRef& rhs, double rank_tol, double scale,
                          VecRef y) {
@@ -210,17 +370,25 @@ void LeastSquares::solve(const CMatRef& M, const CVecRef& rhs, double rank_tol, 
   qr_.lstsq(rhs, y);
 }
 
-const VectorXd& SingularValues::compute(const CMatRef& M, double rank_tol, double scale) {
+void SingularValues::reserve(Index m, Index r) {
+  const Index d = std::min(m, r);
+  qr_.reserve(r, m);
+  R_.reserve(d, d);
+  s_.reserve(m);
+  sv_.reserve(d, d);
+}
+
+CMapV SingularValues::compute(const CMatRef& M, double rank_tol, double scale) {
   const Index m = M.rows();
-  s_.resize(m);
-  if (m == 0) return s_;
-  Mt_.resize(M.cols(), m);
-  Mt_.noalias() = M.transpose();
-  qr_.compute(Mt_);
-  R_.resize(m, m);
-  R_ = qr_.matrixQR().topRows(m).triangularView<Eigen::Upper>();
-  sv_.compute(R_, s_, rank_tol, scale);
-  return s_;
+  MapV s = s_.vec(m);
+  if (m == 0) return CMapV(s.data(), 0);
+  MapM Mt = qr_.input(M.cols(), m);
+  Mt.noalias() = M.transpose();
+  qr_.factor();
+  MapM R = R_.mat(m, m);
+  R = qr_.matrixQR().topRows(m).triangularView<Eigen::Upper>();
+  sv_.compute(R, s, rank_tol, scale);
+  return CMapV(s.data(), m);
 }
 
 }  // namespace hqp

@@ -1,13 +1,14 @@
 // Small dense factorisations of the native solver (Eigen), the C++ twins of
-// hqp/solver/linalg.py. Every object is a workspace: sized once per shape, then recomputed
-// in place without heap allocation while the shape holds.
+// hqp/solver/linalg.py. Every object is a workspace of fixed capacity: reserved once for the
+// largest shape it will see (reserve(), the only place that allocates), then recomputed in
+// place on views of that storage, without heap allocation, whatever the shape of each call.
 #pragma once
 
 #include "solver/malloc_check.hpp"
 
 #include <Eigen/Core>
-#include <Eigen/QR>
 #include <Eigen/Eigenvalues>
+#include <Eigen/QR>
 #include <Eigen/SVD>
 
 namespace hqp {
@@ -15,28 +16,110 @@ namespace hqp {
 using Eigen::Index;
 using Eigen::MatrixXd;
 using Eigen::VectorXd;
+using IVec = Eigen::VectorXi;
 using MatRef = Eigen::Ref<MatrixXd>;
 using CMatRef = Eigen::Ref<const MatrixXd>;
 using VecRef = Eigen::Ref<VectorXd>;
 using CVecRef = Eigen::Ref<const VectorXd>;
+using IVecRef = Eigen::Ref<IVec>;
+using MapM = Eigen::Map<MatrixXd>;
+using CMapM = Eigen::Map<const MatrixXd>;
+using MapV = Eigen::Map<VectorXd>;
+using CMapV = Eigen::Map<const VectorXd>;
+using MapI = Eigen::Map<IVec>;
+using CMapI = Eigen::Map<const IVec>;
 
 /// Whether Eigen may allocate on the heap (checked build only; no-op otherwise).
 void set_malloc_allowed(bool allowed);
 
+/// Storage of a matrix or vector of varying shape and bounded size: reserve() allocates
+/// the capacity, then mat(rows, cols) / vec(size) view its first entries with that shape
+/// (column-major, contiguous: the layout of a MatrixXd of that shape), without allocating.
+/// A shape beyond the capacity grows the storage (an allocation, which the checked build
+/// reports: a capacity computed too small is a bug, not a wrong result). Shaping does not
+/// keep the entries (as Eigen's resize).
+template <typename Scalar>
+class Work {
+ public:
+  using Mat = Eigen::Matrix<Scalar, Eigen::Dynamic, Eigen::Dynamic>;
+  using Vec = Eigen::Matrix<Scalar, Eigen::Dynamic, 1>;
+
+  void reserve(Index size) {
+    if (size > buf_.size()) buf_.resize(size);
+  }
+  void reserve(Index rows, Index cols) { reserve(rows * cols); }
+  Index capacity() const { return buf_.size(); }
+
+  Eigen::Map<Mat> mat(Index rows, Index cols) {
+    reserve(rows * cols);
+    rows_ = rows;
+    cols_ = cols;
+    return Eigen::Map<Mat>(buf_.data(), rows, cols);
+  }
+  Eigen::Map<Vec> vec(Index size) {
+    reserve(size);
+    rows_ = size;
+    cols_ = 1;
+    return Eigen::Map<Vec>(buf_.data(), size);
+  }
+  /// The last shape given.
+  Eigen::Map<Mat> mat() { return Eigen::Map<Mat>(buf_.data(), rows_, cols_); }
+  Eigen::Map<const Mat> mat() const { return Eigen::Map<const Mat>(buf_.data(), rows_, cols_); }
+  Eigen::Map<Vec> vec() { return Eigen::Map<Vec>(buf_.data(), rows_ * cols_); }
+  Eigen::Map<const Vec> vec() const { return Eigen::Map<const Vec>(buf_.data(), rows_ * cols_); }
+  Index rows() const { return rows_; }
+  Index cols() const { return cols_; }
+  Index size() const { return rows_ * cols_; }
+  Scalar* data() { return buf_.data(); }
+
+ private:
+  Vec buf_;
+  Index rows_ = 0, cols_ = 0;
+};
+
+using WorkM = Work<double>;
+using WorkI = Work<int>;
+
+/// Householder QR with column pivoting A P = Q R, in place on fixed-capacity storage: the
+/// steps of Eigen's ColPivHouseholderQR::computeInPlace (the same Householder and norm
+/// downdating calls, in the same order), whose members Eigen resizes at each new shape.
+class ColPivQR {
+ public:
+  void reserve(Index rows, Index cols);
+  /// Shape the matrix to factor (rows, cols); fill it, then factor().
+  MapM input(Index rows, Index cols) { return qr_.mat(rows, cols); }
+  void factor();
+  CMapM matrixQR() const { return qr_.mat(); }
+  CMapV hCoeffs() const { return hc_.vec(); }
+  /// The original column of pivoted column i.
+  int perm(Index i) const { return perm_.vec()(i); }
+
+ private:
+  WorkM qr_, hc_, temp_, nu_, nd_;  // temp_: Householder workspace; nu_, nd_: column norms
+  WorkI perm_;
+};
+
 /// Singular values of a matrix T (d, c), d <= c, largest first: eigenvalues of T T^T
 /// (tridiagonal QR, O(d^3) once), and a Jacobi SVD of T only where the smallest is below
 /// 1e-6 of the largest (where squaring would lose its digits: eps * s_max^2 / s_min).
+/// Both run Eigen's algorithms (SelfAdjointEigenSolver, eigenvalues only; JacobiSVD with
+/// its column-pivoting QR preconditioner, singular values only) on this object's storage.
 class TriangularSingularValues {
  public:
+  void reserve(Index d, Index c);
   /// `rank_tol`, `scale`: a square triangular T whose smallest diagonal entry is at most
   /// rank_tol * max(s_max, scale) has s_min below that threshold too (s_min <= min |T_ii|):
   /// s(d-1) is then set to 0 without the Jacobi SVD (the rank decision the caller makes).
-  void compute(const MatrixXd& T, VecRef s, double rank_tol = 0.0, double scale = 0.0);
+  void compute(const CMatRef& T, VecRef s, double rank_tol = 0.0, double scale = 0.0);
 
  private:
-  MatrixXd G_;
-  Eigen::SelfAdjointEigenSolver<MatrixXd> eig_;
-  Eigen::JacobiSVD<MatrixXd> svd_;
+  /// Eigenvalues of the symmetric G_ (lower triangle read), ascending, into diag_; false
+  /// where the QR iteration did not converge.
+  bool eigenvalues(Index d);
+  /// Singular values of T, descending, into s (Eigen's JacobiSVD).
+  void jacobi(const CMatRef& T, VecRef s);
+  WorkM G_, diag_, sub_, hc_, work_;
+  ColPivQR pre_;
 };
 
 /// Rank-revealing QR of a matrix M (m, r) through M^T P = Q R (column pivoting on M^T, i.e.
@@ -45,6 +128,9 @@ class TriangularSingularValues {
 /// Rank: the number of |R_ii| above rank_tol * max(|R_00|, scale).
 class PivotedQR {
  public:
+  /// Capacity for M up to (m, r); `right_rows`: the rows of the matrices given to
+  /// apply_q_right.
+  void reserve(Index m, Index r, Index right_rows = 0);
   /// Factorise M. `scale`: the largest entry of the level's unprojected rows (0 if none).
   void compute(const CMatRef& M, double rank_tol, double scale);
   /// Factorise with the rank relative to |R_00| alone (the active-set solves).
@@ -55,7 +141,7 @@ class PivotedQR {
   Index cols() const { return r_; }  ///< r
   /// Orthonormal basis (r, r - rank) of the null space of M: Q's trailing columns, formed
   /// from the reflectors alone.
-  const MatrixXd& null();
+  CMapM null();
   /// v := Q v and v := Q^T v for v (r,).
   void apply_q(VecRef v);
   void apply_qt(VecRef v);
@@ -69,25 +155,16 @@ class PivotedQR {
   /// mu[piv[:rank]] = R11^-1 c for c (rank,) (multipliers of the held rows).
   void multipliers(const CVecRef& c, VecRef mu);
   /// Index of the i-th pivoted row of M.
-  Index pivot(Index i) const { return perm_(i); }
+  Index pivot(Index i) const { return qr_.perm(i); }
   /// Singular values of M (those of R), largest first, into s (min(m, r),).
   void singular_values(VecRef s, double rank_tol = 0.0, double scale = 0.0);
-  /// The upper-left (rank, rank) block of R.
-  Eigen::Block<const MatrixXd> R11() const {
-    return qr_.matrixQR().topLeftCorner(rank_, rank_);
-  }
 
  private:
   void factor(const CMatRef& M);
-  Eigen::ColPivHouseholderQR<MatrixXd> qr_;
-  MatrixXd Mt_;
-  MatrixXd N_;
-  MatrixXd L_;
-  MatrixXd Rsq_;
-  Eigen::ColPivHouseholderQR<MatrixXd> lqr_;
+  ColPivQR qr_;   // of M^T (r, m)
+  ColPivQR lqr_;  // of the trapezoid L (m, rank) in lstsq
+  WorkM N_, Rsq_, ws_, wsn_, wsr_, z_, c_;  // ws_, wsn_, wsr_: Householder workspaces
   TriangularSingularValues sv_;
-  VectorXd ws_, wsn_, wsr_, z_, c_;  // ws_, wsn_, wsr_: Householder workspaces (vector, N_, rows)
-  Eigen::VectorXi perm_;
   Index m_ = 0, r_ = 0, rank_ = 0;
   bool n_ready_ = false;
 };
@@ -97,6 +174,7 @@ class PivotedQR {
 /// pivoted QR with the threshold rank_tol * max(|R_00|, scale).
 class LeastSquares {
  public:
+  void reserve(Index m, Index r) { qr_.reserve(m, r); }
   void solve(const CMatRef& M, const CVecRef& rhs, double rank_tol, double scale, VecRef y);
 
  private:
@@ -107,13 +185,13 @@ class LeastSquares {
 /// factor of M^T.
 class SingularValues {
  public:
-  const VectorXd& compute(const CMatRef& M, double rank_tol = 0.0, double scale = 0.0);
+  void reserve(Index m, Index r);
+  CMapV compute(const CMatRef& M, double rank_tol = 0.0, double scale = 0.0);
 
  private:
-  Eigen::ColPivHouseholderQR<MatrixXd> qr_;  // unblocked: no temporaries
-  MatrixXd Mt_, R_;
+  ColPivQR qr_;
+  WorkM R_, s_;
   TriangularSingularValues sv_;
-  VectorXd s_;
 };
 
 }  // namespace hqp

@@ -13,8 +13,25 @@ namespace {
 constexpr double kDependent = 1e-10;
 }  // namespace
 
+void Nnls::reserve(Index m, Index n) {
+  Q_.reserve(m, m);
+  R_.reserve(m, m);
+  qtb_.reserve(m);
+  res_.reserve(m);
+  col_.reserve(m);
+  x_.reserve(n);
+  z_.reserve(n);
+  w_.reserve(n);
+  in_.reserve(n);
+  idx_.reserve(n);
+  skip_.reserve(n);
+}
+
 void Nnls::rotate(Index i, Index k, double c, double s, Index first_col) {
   // rows i, k of Q^T A[:, P] (R from first_col on), of Q^T b and of Q^T (columns of Q)
+  MapM R_ = this->R_.mat();
+  MapV qtb_ = this->qtb_.vec();
+  MapM Q_ = this->Q_.mat();
   for (Index col = first_col; col < np_; ++col) {
     const double t1 = R_(i, col), t2 = R_(k, col);
     R_(i, col) = c * t1 + s * t2;
@@ -34,8 +51,8 @@ void Nnls::rotate(Index i, Index k, double c, double s, Index first_col) {
 bool Nnls::add(const CMatRef& A, Index j) {
   const Index np = np_;
   if (np >= m_) return false;
-  col_.resize(m_);
-  col_.noalias() = Q_.topLeftCorner(m_, m_).transpose() * A.col(j);
+  MapV col_ = this->col_.vec(m_);
+  col_.noalias() = Q_.mat().transpose() * A.col(j);
   const double anorm = A.col(j).norm();
   const double rest = col_.tail(m_ - np).norm();
   if (!(anorm > 0.0) || rest <= kDependent * anorm) return false;
@@ -49,15 +66,18 @@ bool Nnls::add(const CMatRef& A, Index j) {
     col_(i) = 0.0;
     rotate(i - 1, i, c, s, np);  // R has no entries below row np-1 yet: only Q, Q^T b move
   }
+  MapM R_ = this->R_.mat();
   R_.col(np).head(np + 1) = col_.head(np + 1);
   R_.col(np).segment(np + 1, m_ - np - 1).setZero();
-  idx_(np) = int(j);
+  idx_.vec()(np) = int(j);
   ++np_;
   return true;
 }
 
 void Nnls::remove(Index q) {
   const Index np = np_;
+  MapM R_ = this->R_.mat();
+  MapI idx_ = this->idx_.vec();
   // drop column q; the columns after it shift left, leaving one subdiagonal entry each,
   // which rotations of neighbouring rows remove
   for (Index k = q; k + 1 < np; ++k) {
@@ -76,39 +96,43 @@ void Nnls::remove(Index q) {
 
 void Nnls::solve_passive() {
   const Index np = np_;
+  MapV z_ = this->z_.vec();
   z_.setZero();
   if (!np) return;
-  col_.resize(np);
-  col_ = qtb_.head(np);
-  R_.topLeftCorner(np, np).triangularView<Eigen::Upper>().solveInPlace(col_);
+  MapV col_ = this->col_.vec(np);
+  col_ = qtb_.vec().head(np);
+  const MapI idx_ = this->idx_.vec();
+  R_.mat().topLeftCorner(np, np).triangularView<Eigen::Upper>().solveInPlace(col_);
   for (Index a = 0; a < np; ++a) z_(idx_(a)) = col_(a);
 }
 
 double Nnls::update_residual(const CMatRef& A, const CVecRef& b) {
-  res_.noalias() = b - A * x_;
+  MapV res_ = this->res_.vec();
+  res_.noalias() = b - A * x_.vec();
   residual_ = res_.norm();
   return residual_;
 }
 
 bool Nnls::solve(const CMatRef& A, const CVecRef& b, double res_tol, int max_outer,
-                 const Eigen::VectorXi* warm) {
+                 const CMapI* warm) {
   const Index m = A.rows(), n = A.cols();
   n_ = n;
   m_ = m;
   np_ = 0;
   steps_ = 0;
-  if (Q_.rows() < m) Q_.resize(m, m);
-  if (R_.rows() < m || R_.cols() < std::min(m, n)) R_.resize(m, std::max(m, n));
-  Q_.topLeftCorner(m, m).setIdentity();
-  qtb_.resize(m);
-  qtb_ = b;
-  x_.setZero(n);
-  z_.resize(n);
-  w_.resize(n);
-  res_.resize(m);
-  in_.setZero(n);
-  idx_.resize(n);
-  skip_.setZero(n);
+  Q_.mat(m, m).setIdentity();
+  R_.mat(m, m);
+  qtb_.vec(m) = b;
+  MapV x_ = this->x_.vec(n);
+  x_.setZero();
+  MapV z_ = this->z_.vec(n);
+  MapV w_ = this->w_.vec(n);
+  const MapV res_ = this->res_.vec(m);
+  MapI in_ = this->in_.vec(n);
+  in_.setZero();
+  const MapI idx_ = this->idx_.vec(n);
+  MapI skip_ = this->skip_.vec(n);
+  skip_.setZero();
   const double eps = std::numeric_limits<double>::epsilon();
   const double top = n && m ? A.cwiseAbs().colwise().sum().maxCoeff() : 0.0;
   const double tol = 10.0 * double(std::max(m, n)) * eps * top;

@@ -9,7 +9,7 @@
 // nnls): `solve` stops as soon as the residual meets the caller's tolerance.
 #pragma once
 
-#include <Eigen/Dense>
+#include "solver/linalg.hpp"
 
 namespace hqp {
 
@@ -26,12 +26,14 @@ class Nnls {
   /// columns tried first as passive (nullptr: a cold start from x = 0). At most max_outer
   /// column entries. Returns whether the final residual is <= res_tol.
   bool solve(const CMatRef& A, const CVecRef& b, double res_tol, int max_outer,
-             const Eigen::VectorXi* warm = nullptr);
+             const CMapI* warm = nullptr);
+  /// Capacity for A up to (m, n): no allocation in solve() within it.
+  void reserve(Index m, Index n);
 
-  const VectorXd& x() const { return x_; }
+  CMapV x() const { return x_.vec(); }
   double residual() const { return residual_; }
   /// The passive set of the last solve: 1 where x > 0 (n,).
-  const Eigen::VectorXi& passive() const { return in_; }
+  CMapI passive() const { return in_.vec(); }
   int steps() const { return steps_; }
 
  private:
@@ -41,9 +43,10 @@ class Nnls {
   void solve_passive();                 // z on the passive set
   double update_residual(const CMatRef& A, const CVecRef& b);
 
-  MatrixXd Q_, R_;  // Q^T A[:, P] = [R; 0]: Q (m, m), R (m, np) in its top-left corner
-  VectorXd qtb_, x_, z_, w_, res_, col_;
-  Eigen::VectorXi in_, idx_, skip_;  // passive flags, passive order, rejected as dependent
+  // fixed-capacity storage (linalg.hpp's Work), shaped at each solve
+  WorkM Q_, R_;  // Q^T A[:, P] = [R; 0]: Q (m, m), R (m, m), np columns used
+  WorkM qtb_, x_, z_, w_, res_, col_;
+  WorkI in_, idx_, skip_;  // passive flags, passive order, rejected as dependent
   Index m_ = 0, n_ = 0, np_ = 0;
   double residual_ = 0.0;
   int steps_ = 0;

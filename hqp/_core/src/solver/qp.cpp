@@ -24,23 +24,35 @@ double bound_scale(double b) { return std::isfinite(b) ? std::max(1.0, std::abs(
 
 }  // namespace
 
-bool LevelQP::daqp(double margin, VectorXd& v) {
-  const int n = int(H_.rows());
-  const int m = int(A_.rows());
-  bu_.resize(m);
-  bl_.resize(m);
+void LevelQP::reserve(Index n, Index m) {
+  H_.reserve(n, n);
+  A_.reserve(m, n);
+  g_.reserve(n);
+  v2_.reserve(n);
+  lo_.reserve(m);
+  up_.reserve(m);
+  bu_.reserve(m);
+  bl_.reserve(m);
+  lam_.reserve(std::max(m, Index(1)));
+  sense_.reserve(std::size_t(m));
+}
+
+bool LevelQP::daqp(double margin, VecRef v) {
+  const int n = int(n_);
+  const int m = int(m_);
+  MapV bu = bu_.vec(m), bl = bl_.vec(m);
+  const MapV lo = lo_.vec(), up = up_.vec();
   for (int i = 0; i < m; ++i) {
-    double u = up_(i), l = lo_(i);
+    double u = up(i), l = lo(i);
     if (margin > 0.0) {
       u += margin * bound_scale(u);
       l -= margin * bound_scale(l);
     }
-    bu_(i) = std::min(u, kDaqpInf);
-    bl_(i) = std::max(l, -kDaqpInf);
+    bu(i) = std::min(u, kDaqpInf);
+    bl(i) = std::max(l, -kDaqpInf);
   }
-  sense_.assign(m, 0);
-  lam_.resize(std::max(m, 1));
-  v.resize(n);
+  sense_.assign(std::size_t(m), 0);
+  MapV lam = lam_.vec(std::max(m, 1));
   for (double primal_tol : kPrimalTol) {
     for (double eps_prox : kEpsProx) {
       DAQPProblem qp;
@@ -50,8 +62,8 @@ bool LevelQP::daqp(double margin, VectorXd& v) {
       qp.H = H_.data();
       qp.f = g_.data();
       qp.A = m ? A_.data() : nullptr;
-      qp.bupper = m ? bu_.data() : nullptr;
-      qp.blower = m ? bl_.data() : nullptr;
+      qp.bupper = m ? bu.data() : nullptr;
+      qp.blower = m ? bl.data() : nullptr;
       qp.sense = m ? sense_.data() : nullptr;
       qp.break_points = nullptr;
       qp.nh = 0;
@@ -65,7 +77,7 @@ bool LevelQP::daqp(double margin, VectorXd& v) {
       settings.eps_prox = eps_prox;
       DAQPResult res;
       res.x = v.data();
-      res.lam = lam_.data();
+      res.lam = lam.data();
       daqp_quadprog(&res, &qp, &settings);
       if (res.exitflag >= 1 && v.allFinite()) return true;
     }
@@ -74,12 +86,13 @@ bool LevelQP::daqp(double margin, VectorXd& v) {
   return false;
 }
 
-bool LevelQP::proxqp(VectorXd& v) {
+bool LevelQP::proxqp(VecRef v) {
   // the last resort: ProxQP (header-only, from the proxsuite wheel), an augmented-Lagrangian
   // method that keeps going on the nearly degenerate feasible sets where DAQP's dual steps
-  // report infeasibility (in the Python reference, quadprog plays this part)
+  // report infeasibility (in the Python reference, quadprog plays this part). It allocates
+  // its own workspace at each call.
   namespace pq = proxsuite::proxqp;
-  const Index n = H_.rows(), m = A_.rows();
+  const Index n = n_, m = m_;
   pq::dense::QP<double> qp(n, 0, m);
   qp.settings.eps_abs = 1e-9;
   qp.settings.eps_rel = 0.0;
@@ -87,9 +100,10 @@ bool LevelQP::proxqp(VectorXd& v) {
   qp.settings.eps_primal_inf = 1e-12;
   qp.settings.eps_dual_inf = 1e-12;
   qp.settings.verbose = false;
-  MatrixXd H = H_, C = A_;
-  VectorXd lo = lo_.cwiseMax(-1e20), up = up_.cwiseMin(1e20);
-  qp.init(H, g_, proxsuite::nullopt, proxsuite::nullopt, C, lo, up);
+  MatrixXd H = RowMap(H_.data(), n, n), C = RowMap(A_.data(), m, n);
+  VectorXd g = g_.vec();
+  VectorXd lo = lo_.vec().cwiseMax(-1e20), up = up_.vec().cwiseMin(1e20);
+  qp.init(H, g, proxsuite::nullopt, proxsuite::nullopt, C, lo, up);
   qp.solve();
   if (qp.results.info.status != pq::QPSolverOutput::PROXQP_SOLVED || !qp.results.x.allFinite())
     return false;
@@ -98,19 +112,25 @@ bool LevelQP::proxqp(VectorXd& v) {
 }
 
 bool LevelQP::solve(const CMatRef& H, const CVecRef& g, const CMatRef& C, const CVecRef& lo,
-                    const CVecRef& up, VectorXd& v) {
+                    const CVecRef& up, VecRef v) {
   // normalise the cost: the minimiser does not change, DAQP's tolerances then mean the same
   // thing for levels of any scale
+  n_ = H.rows();
+  m_ = C.rows();
   const double scale = H.size() ? H.cwiseAbs().maxCoeff() : 0.0;
-  H_ = H;
-  g_ = g;
+  H_.vec(n_ * n_);
+  RowMap Hr(H_.data(), n_, n_);
+  Hr = H;
+  MapV gv = g_.vec(n_);
+  gv = g;
   if (scale > 0.0 && (scale < 0.1 || scale > 10.0)) {
-    H_ /= scale;
-    g_ /= scale;
+    Hr /= scale;
+    gv /= scale;
   }
-  A_ = C;
-  lo_ = lo;
-  up_ = up;
+  A_.vec(m_ * n_);
+  RowMap(A_.data(), m_, n_) = C;
+  lo_.vec(m_) = lo;
+  up_.vec(m_) = up;
   const bool has_in = C.rows() > 0;
   if (has_in && sticky_ >= 0) {
     const int i = sticky_;
@@ -120,7 +140,7 @@ bool LevelQP::solve(const CMatRef& H, const CVecRef& g, const CMatRef& C, const 
   }
   bool ok = daqp(0.0, v);
   if (ok || !has_in) return ok;
-  VectorXd v2;
+  MapV v2 = v2_.vec(n_);
   for (int i = 0; i < 2; ++i) {
     if (i && v.allFinite()) break;
     if (daqp(kRetryMargins[i], v2)) {

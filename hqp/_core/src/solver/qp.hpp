@@ -12,18 +12,23 @@ namespace hqp {
 
 class LevelQP {
  public:
+  /// Capacity for n variables and m inequality rows (DAQP allocates its own workspace per
+  /// call, outside this storage; the ProxQP last resort allocates).
+  void reserve(Index n, Index m);
   /// min 0.5 v^T H v + g^T v  s.t.  lo <= C v <= up (C may have no rows). Returns whether
-  /// DAQP converged; v holds its point (NaN when nothing finite came back).
+  /// DAQP converged; v (n,) holds its point (NaN when nothing finite came back).
   bool solve(const CMatRef& H, const CVecRef& g, const CMatRef& C, const CVecRef& lo,
-             const CVecRef& up, VectorXd& v);
+             const CVecRef& up, VecRef v);
   /// Forget the relaxation memory.
   void reset() { sticky_ = -1; }
 
  private:
-  bool daqp(double margin, VectorXd& v);
-  bool proxqp(VectorXd& v);
-  Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> H_, A_;
-  VectorXd g_, lo_, up_, bu_, bl_, lam_;
+  using RowMap = Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>;
+  bool daqp(double margin, VecRef v);
+  bool proxqp(VecRef v);
+  // fixed-capacity storage (linalg.hpp's Work); H_ and A_ hold row-major matrices
+  WorkM H_, A_, g_, lo_, up_, bu_, bl_, lam_, v2_;
+  Index n_ = 0, m_ = 0;
   std::vector<int> sense_;
   int sticky_ = -1;    // index of the relaxation that last succeeded on this slot
   int sticky_left_ = 0;
