@@ -67,6 +67,23 @@ def _same_command(a, b, what: str, tol: float = 1e-7, sigma_tol: float = 1e-8,
                                atol=1e-12, err_msg=what)
 
 
+def _same_levels(nat, py, what: str, tol: float = 1e-10) -> None:
+    """The levels of the last native step (copied out on demand) equal the Python step's rows
+    (finite entries, to ``tol`` of each matrix's largest)."""
+    built_n, built_p = nat.last_built, py.last_built
+    assert built_n.level_index == built_p.level_index, what
+    for la, lb in zip(built_n.levels, built_p.levels):
+        for key in ("A", "b", "C", "lower", "upper"):
+            va, vb = getattr(la, key), getattr(lb, key)
+            assert (va is None) == (vb is None), (what, key)
+            if vb is not None and np.size(vb):
+                f = np.isfinite(vb)
+                np.testing.assert_array_equal(np.isfinite(va), f, err_msg=f"{what}: {key}")
+                np.testing.assert_allclose(np.asarray(va)[f], np.asarray(vb)[f], rtol=0,
+                                           atol=tol * max(1.0, np.abs(vb[f]).max()),
+                                           err_msg=f"{what}: {key}")
+
+
 def _same_errors(nat, py, what: str, tol: float = 1e-9) -> None:
     """Every task's ``error()`` after the step, as the Python step leaves it."""
     for task in py.stack.tasks:
@@ -126,7 +143,8 @@ def test_a_conflict_is_reported_as_the_python_step_reports_it(name):
 
 def test_steps_the_native_step_does_not_run_are_python_steps():
     """A task ramping in, a contact unloading and released, a task without a kernel."""
-    from hqp.tasks.effort import EffortTask
+    from _h5_standins import PostureStandIn
+
     from hqp.tasks.position import PositionTask
 
     robot, nat, py = _pair("g1", "residuals")
@@ -153,11 +171,12 @@ def test_steps_the_native_step_does_not_run_are_python_steps():
                       sigma_tol=1e-6, conflict_sigma=False)
         _same_errors(nat, py, f"t={t}", tol=1e-6)
     assert nat.native.unsupported is None
-    for ctrl in (nat, py):
-        ctrl.add_task(EffortTask(ctrl.model), "posture", ramp_time=0.0)
+    for ctrl in (nat, py):  # a task written in Python (no kernel): the Python step
+        ctrl.add_task(PostureStandIn("own_posture", robot.q_standing, weight=1e-2), "posture",
+                      ramp_time=0.0)
     steps = nat.native.steps
     t, state = states[-1]
-    _same_command(nat.step(state, t + 0.001), py.step(state, t + 0.001), "effort", tol=1e-5,
+    _same_command(nat.step(state, t + 0.001), py.step(state, t + 0.001), "own task", tol=1e-5,
                   sigma_tol=1e-6, conflict_sigma=False)
     assert nat.native.steps == steps and "no native kernel" in nat.native.unsupported
 
@@ -219,3 +238,91 @@ def test_a_native_step_runs_one_pinocchio_pass():
     assert not nat.model._pending
     frame = robot.hands[1]
     np.testing.assert_array_equal(nat.model.frame_jacobian(frame), py.model.frame_jacobian(frame))
+
+
+def _operational_tasks(robot, ctrl):
+    """Gaze at a point ahead, a hand held in its pose, a foot's hybrid force/position rows,
+    the feet's internal forces and a weighted effort term: (level, task) pairs."""
+    from hqp.tasks.cop import CoPTask
+    from hqp.tasks.effort import EffortTask
+    from hqp.tasks.gaze import GazeTask
+    from hqp.tasks.hybrid import HybridTask
+    from hqp.tasks.internal_forces import InternalForcesTask
+    from hqp.tasks.pose import PoseTask
+
+    m = ctrl.model
+    m.update(robot.q_standing, np.zeros(m.nv))
+    head = robot.head_frame or robot.base_frame
+    gaze = GazeTask(m, head, kp=25.0, max_velocity=1.0, max_acceleration=4.0)
+    gaze.set_goal(m.frame_placement(head).act(np.array([1.5, 0.1, -0.4])))
+    hand = robot.hands[0]
+    pose = PoseTask(m, hand, kp=40.0, max_velocity=0.5)
+    pose.set_goal(m.frame_placement(hand).homogeneous)
+    feet = [c.name for c in ctrl.layout.contacts]
+    foot = ctrl.layout.contact(feet[1])
+    hybrid = HybridTask(m, foot.frame, foot.name, kp=20.0, weight=1e-2)
+    hybrid.set_goal(m.frame_placement(foot.frame).homogeneous)
+    hybrid.set_force([0.5 * m.mass * 9.81])
+    cop = CoPTask(m, feet, name="cop", weight=1e-3)
+    cop.set_goal(m.com[:2])
+    return [("operational", gaze), ("operational", pose), ("operational", hybrid),
+            ("operational", InternalForcesTask(m, feet)), ("posture", cop),
+            ("posture", EffortTask(m, weight=1e-4))]
+
+
+@pytest.mark.parametrize("name", robots.NAMES)
+def test_operational_kernels_run_natively(name):
+    """Gaze, pose, hybrid force/position, internal forces, CoP and effort on the native step: the
+    same levels (1e-10) as the Python step, and the same command, report and task errors.
+    The operational level's tasks conflict with one another (six tasks in conflict on g1):
+    its points are QP points, found by the same solver along warm-start paths that rows
+    equal to 1e-15 can still split (1.2e-7 of the largest torque at g1's t = 5 ms), so the
+    command is held to the conflict tolerances (1e-5, as in the conflict test above)."""
+    robot, nat, py = _pair(name)
+    for ctrl in (nat, py):
+        for level, task in _operational_tasks(robot, ctrl):
+            ctrl.add_task(task, level, ramp_time=0.0)
+    for t, state in _states(robot, nat.model, 10, seed=14):
+        _same_command(nat.step(state, t), py.step(state, t), f"{name} t={t}", tol=1e-5,
+                      sigma_tol=1e-6, conflict_sigma=False)
+        _same_levels(nat, py, f"{name} t={t}")
+        _same_errors(nat, py, f"{name} t={t}", tol=1e-6)
+    assert nat.native.unsupported is None and nat.native.steps >= 9
+
+
+@pytest.mark.parametrize("name", robots.NAMES)
+def test_collision_kernels_run_natively(name):
+    """Obstacle avoidance (a moving sphere near a hand) and self-collision pairs on the native
+    step: the same levels (1e-10), command, report, margins and pair names as the Python step.
+    Some of the pairs start inside their influence distance, so the constraint level is in
+    conflict (QP points): the command is held to the conflict tolerances."""
+    from hqp.model.world import Sphere, World
+    from hqp.tasks.collision import ObstacleAvoidance, SelfCollision
+
+    robot, nat, py = _pair(name)
+    caps = list(robot.capsules)
+    pairs = [(a, b) for i, a in enumerate(caps) for b in caps[i + 1:] if a.frame != b.frame]
+    worlds = []
+    for ctrl in (nat, py):
+        ctrl.model.update(robot.q_standing, np.zeros(ctrl.model.nv))
+        hand = ctrl.model.frame_placement(robot.hands[1]).translation
+        world = World([Sphere("ball", hand + [0.25, -0.1, 0.0], 0.08,
+                              velocity=[-0.3, 0.0, 0.0])])
+        worlds.append(world)
+        ctrl.add_task(ObstacleAvoidance("avoid", world, caps, d_safe=0.05, d_influence=0.3),
+                      "joint_limits", ramp_time=0.0)
+        ctrl.add_task(SelfCollision("self", pairs[:10], d_influence=0.15), "joint_limits",
+                      ramp_time=0.0)
+    finite = 0
+    for t, state in _states(robot, nat.model, 10, seed=15):
+        _same_command(nat.step(state, t), py.step(state, t), f"{name} t={t}", tol=1e-5,
+                      sigma_tol=1e-6, conflict_sigma=False)
+        _same_levels(nat, py, f"{name} t={t}")
+        _same_errors(nat, py, f"{name} t={t}", tol=1e-6)
+        for task in ("avoid", "self"):
+            assert nat.task(task).pair_names == py.task(task).pair_names
+        finite += int(np.isfinite(py.last_built.rows["avoid"].lower).sum())
+        for world in worlds:
+            world.step(0.001)
+    assert finite > 0  # the obstacle is within the rows' influence
+    assert nat.native.unsupported is None and nat.native.steps >= 9

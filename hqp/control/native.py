@@ -9,8 +9,9 @@ interface and the test oracle (``tests/test_core_step.py`` holds the two equal).
 Supported today: the standing set (floating-base dynamics, contacts and their limits,
 torque limits, viable joint limits with a fixed or support-dependent braking, CoG,
 centroidal momentum, orientation, position and posture tasks, the contact-force
-regularisation) with goals and trajectories,
-contacts made and released, in a steady stack (no task ramping in, no contact unloading, no
+regularisation), gaze, pose and hybrid force/position tasks, internal forces, obstacle
+avoidance and self-collision (capsule distances), minimum effort, the centre of pressure, with
+goals and trajectories, contacts made and released, in a steady stack (no task ramping in, no contact unloading, no
 torque blend; :meth:`hqp.stack.Stack.steady`). Anything else raises :class:`NotSupported`
 (a task without a kernel) or is left to the Python step for that step (a stack that is not
 steady).
@@ -24,6 +25,7 @@ computed).
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
@@ -32,18 +34,25 @@ from hqp._core import _ext as _core_ext
 from hqp.control.command import Feasibility, TaskStatus
 from hqp.control.diagnostics import Diagnostics
 from hqp.errors import HQPError
+from hqp.model.layout import ContactType
 from hqp.robots.robot import ROOT_JOINT, Robot
 from hqp.solver.level import Level
 from hqp.solver.solution import LevelReport, Solution
 from hqp.stack import BuiltStack, Stack, TaskSpan
 from hqp.tasks.base import Rows
 from hqp.tasks.centroidal import CentroidalMomentumTask
+from hqp.tasks.collision import ObstacleAvoidance, SelfCollision
 from hqp.tasks.com import CoMTask
 from hqp.tasks.contact import Contact, ContactLimits
+from hqp.tasks.cop import CoPTask
 from hqp.tasks.dynamics import FloatingBaseDynamics
-from hqp.tasks.effort import ForceRegularization
+from hqp.tasks.effort import EffortTask, ForceRegularization
+from hqp.tasks.gaze import GazeTask
+from hqp.tasks.hybrid import HybridTask
+from hqp.tasks.internal_forces import COMPONENTS, InternalForcesTask
 from hqp.tasks.joint_limits import JointLimits
 from hqp.tasks.orientation import OrientationTask
+from hqp.tasks.pose import PoseTask
 from hqp.tasks.position import PositionTask
 from hqp.tasks.posture import PostureTask
 from hqp.tasks.torque_limits import TorqueLimits
@@ -95,8 +104,12 @@ class NativeStepMirror:
                                          model.nv_base, slots, stack.n_levels, rank_tol,
                                          warm_start, True)
         self._frame = robot_core.frame_id
-        self._goals: list[tuple[int, Any, bool]] = []  # (handle, task, orientation)
+        self._goals: list[tuple[int, Any, str]] = []  # (handle, task, goal kind)
         self._braking: list[tuple[int, JointLimits]] = []
+        self._internal: list[tuple[int, InternalForcesTask, int]] = []  # (handle, task, rows)
+        self._cops: list[tuple[int, CoPTask]] = []
+        # (handle, task, obstacles or None, pair names)
+        self._distances: list[tuple[int, Any, list[Any] | None, tuple[str, ...]]] = []
         self._contacts: dict[str, int] = {}
         self._names: list[str] = []  # task name by handle
         self._entries: list[tuple[Any, ...]] | None = None  # row placement, after a step
@@ -141,16 +154,102 @@ class NativeStepMirror:
         elif isinstance(task, OrientationTask):
             handle = s.add_orientation(level, w, core.OrientationTracking(
                 self._frame(task.frame), *_gains(task)))
-            self._goals.append((handle, task, True))
+            self._goals.append((handle, task, "orientation"))
         elif isinstance(task, (PositionTask, CoMTask, PostureTask, CentroidalMomentumTask)):
             handle = s.add_tracking(level, w, self._tracking_kernel(core, task))
-            self._goals.append((handle, task, False))
+            self._goals.append((handle, task, "vector"))
+        elif isinstance(task, GazeTask):
+            handle = s.add_gaze(level, w, core.GazeKernel(
+                self._frame(task.frame), task.axis, task._P, *_gains(task)))
+            self._goals.append((handle, task, "vector"))
+        elif isinstance(task, PoseTask):  # and HybridTask
+            handle = s.add_pose(level, w, self._pose_kernel(core, task))
+            self._goals.append((handle, task, "pose"))
+        elif isinstance(task, InternalForcesTask):
+            handle = s.add_internal_forces(level, w, self._internal_kernel(core, task))
+            self._internal.append((handle, task, len(task.components(self._layout))))
+        elif isinstance(task, (ObstacleAvoidance, SelfCollision)):
+            self._add_distance(core, task, level)
+        elif isinstance(task, CoPTask):
+            try:
+                slots = task._slots(self._layout)
+            except HQPError:
+                raise NotSupported(f"{task.where()}: contacts the Python step refuses") from None
+            kernel = core.CoPKernel(
+                [(self._frame_of(task, c.frame), c.size, c.start) for c in slots],
+                math.nan if task.height is None else task.height, task._scale)
+            self._cops.append((s.add_cop(level, w, kernel), task))
+        elif isinstance(task, EffortTask):
+            if task._w.shape != (model.na,):
+                raise NotSupported(f"{task.where()}: built for another robot")
+            s.add_effort(level, w, np.asarray(task._w, dtype=float))
         elif isinstance(task, ForceRegularization):  # rows of the layout alone
             rows = task.rows(model, self._layout, self.dt, 0.0)
             s.add_constant(level, w, np.asarray(rows.A, dtype=float),
                            np.asarray(rows.b, dtype=float))
         else:
             raise NotSupported(f"{task.where()}: no native kernel for {type(task).__name__}")
+
+    def _frame_of(self, task: Any, frame: str) -> int:
+        """The native frame index (a frame the model lacks: the Python step raises its error)."""
+        fid = self._frame(frame)
+        if fid < 0:
+            raise NotSupported(f"{task.where()}: frame {frame!r} is not in the model")
+        return int(fid)
+
+    def _pose_kernel(self, core: Any, task: PoseTask) -> Any:
+        linear, angular = np.arange(3), np.arange(3)
+        force_start, force_index = 0, _NO_INT
+        if isinstance(task, HybridTask):
+            try:
+                slot = self._layout.contact(task.contact)
+            except HQPError:
+                raise NotSupported(f"{task.where()}: contact not in the layout") from None
+            point = slot.kind is not ContactType.SURFACE
+            if slot.frame != task.frame or (point and np.any(task._force_index >= 3)):
+                raise NotSupported(f"{task.where()}: rows the Python step refuses")
+            linear = task._linear
+            angular = task._angular if not point else np.zeros(0, dtype=int)
+            force_start, force_index = int(slot.start), task._force_index
+        ang = task.angular_reference
+        return core.PoseKernel(self._frame_of(task, task.frame), linear.astype(np.int32),
+                               angular.astype(np.int32), isinstance(task, HybridTask),
+                               *_gains(task), ang.max_velocity, ang.max_acceleration,
+                               force_start, np.asarray(force_index, dtype=np.int32))
+
+    def _internal_kernel(self, core: Any, task: InternalForcesTask) -> Any:
+        try:
+            s1, s2 = task._slots(self._layout)
+            components = task.components(self._layout)
+        except HQPError:
+            raise NotSupported(f"{task.where()}: contacts the Python step refuses") from None
+        names = COMPONENTS if s1.size == 6 else ("tension",)
+        index = np.array([names.index(c) for c in components], dtype=np.int32)
+        return core.InternalForcesKernel(self._frame_of(task, s1.frame), s1.size, s1.start,
+                                         self._frame_of(task, s2.frame), s2.start, index)
+
+    def _add_distance(self, core: Any, task: Any, level: int) -> None:
+        kernel = core.DistanceKernel(task.d_safe, task.d_influence, task.xi,
+                                     0.0 if task.kv is None else task.kv)
+        names: list[str] = []
+        obstacles: list[Any] | None = None
+        if isinstance(task, SelfCollision):
+            for a, b in task.pairs:
+                kernel.add_pair(self._frame_of(task, a.frame), a.point_a, a.point_b, a.radius,
+                                self._frame_of(task, b.frame), b.point_a, b.point_b, b.radius)
+                names.append(task.pair_name(a.name, b.name))
+        else:
+            try:
+                obstacles = task.selected_obstacles()
+            except HQPError:
+                raise NotSupported(f"{task.where()}: obstacles the Python step refuses") from None
+            for p in task.proxies:
+                frame = self._frame_of(task, p.frame)
+                for k, o in enumerate(obstacles):
+                    kernel.add_obstacle_pair(frame, p.point_a, p.point_b, p.radius, k)
+                    names.append(task.pair_name(p.name, o.name))
+        handle = self.step_core.add_distance(level, task.weight, kernel)
+        self._distances.append((handle, task, obstacles, tuple(names)))
 
     def _slot_start(self, task: Contact) -> int:
         return int(self._layout.contact(task.name).start)
@@ -172,20 +271,37 @@ class NativeStepMirror:
                                    task._v_index.astype(np.int32), scale, *_gains(task))
 
     def push_goals(self, t: float) -> None:
-        """Send every tracking task's goal at time ``t`` (and the joint-limit braking)."""
+        """Send every task's goal at time ``t`` (and the joint-limit braking, the obstacles).
+
+        Raises:
+            InvalidInput: A goal the Python step refuses too (same message).
+
+        """
         s = self.step_core
-        for handle, task, orientation in self._goals:
+        for handle, task, kind in self._goals:
             if isinstance(task, CentroidalMomentumTask):
                 g = task._goal if task.trajectory is None else task.trajectory.sample(t)
                 s.set_goal(handle, g.position, g.velocity, np.zeros_like(g.velocity))
                 continue
             g = task.goal_at(t)
-            if orientation:
+            if kind == "orientation":
                 s.set_orientation_goal(handle, g.position, g.velocity, g.acceleration)
+            elif kind == "pose":
+                s.set_pose_goal(handle, g.position, g.velocity, g.acceleration)
+                if isinstance(task, HybridTask):
+                    s.set_force(handle, task._force)
             else:
                 s.set_goal(handle, g.position, g.velocity, g.acceleration)
         for handle, task in self._braking:
             s.set_braking(handle, np.asarray(task.braking_deceleration(self.model), dtype=float))
+        for handle, task, rows in self._internal:
+            s.set_internal_goal(handle, task.goal_of(rows))
+        for handle, task in self._cops:
+            s.set_cop_goal(handle, task.goal_at(t))
+        for handle, _task, obstacles, _names in self._distances:
+            for k, o in enumerate(obstacles or ()):
+                a, b = o.segment
+                s.set_obstacle(handle, k, a, b, o.velocity, o.radius)
 
     def sync_contacts(self) -> bool:
         """Push each contact's activation and stabilisation reference to its kernel.
@@ -234,9 +350,11 @@ class NativeStepMirror:
         state (logs and behaviors read them).
         """
         core = self.step_core
-        for handle, task, _orientation in self._goals:
+        for handle, task, _kind in self._goals:
             e, rate = core.kernel_error(handle)
             task.record_error(rate if isinstance(task, CentroidalMomentumTask) else e)
+        for handle, task, _obstacles, names in self._distances:
+            task.record_error(core.margins(handle), names)
         for task in self._model_errors:
             task.record_error(self.model)
 
@@ -336,6 +454,30 @@ def _parameters(task: Any) -> tuple[Any, ...]:
         out += (task.position_margin, task.velocity_scale, task.reserve, task.velocity_time,
                 task.approach_time, task.inactive_beyond, task.acceleration_bounds,
                 task.qdd_max is None)
+    elif isinstance(task, GazeTask):
+        out += (task.frame, task.axis.tobytes())
+    elif isinstance(task, PoseTask):
+        ang = task.angular_reference
+        out += (task.frame, ang.max_velocity, ang.max_acceleration)
+        if isinstance(task, HybridTask):
+            out += (task.contact, task.force_axes)
+    elif isinstance(task, InternalForcesTask):
+        out += (task.contacts, task._components)
+    elif isinstance(task, (ObstacleAvoidance, SelfCollision)):
+        out += (task.d_safe, task.d_influence, task.xi, task.kv)
+        if isinstance(task, SelfCollision):
+            out += tuple((id(a), id(b)) for a, b in task.pairs)
+        else:  # the obstacles avoided now: one row per (proxy, obstacle)
+            try:
+                obstacles: tuple[int, ...] | None = tuple(
+                    id(o) for o in task.selected_obstacles())
+            except HQPError:  # the Python step raises it
+                obstacles = None
+            out += tuple(id(p) for p in task.proxies) + (id(task.world), obstacles)
+    elif isinstance(task, EffortTask):
+        out += (task._w.tobytes(),)
+    elif isinstance(task, CoPTask):
+        out += (task.contacts, task.height)
     reference = getattr(task, "reference", None)
     if reference is not None and hasattr(reference, "kp"):
         out += _gains(task)

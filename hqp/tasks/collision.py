@@ -298,6 +298,20 @@ class _DistanceTask(Task):
     def _pairs(self, model: RobotModel) -> list[tuple[str, _Segment, _Segment]]:
         raise NotImplementedError
 
+    @staticmethod
+    def pair_name(first: str, second: str) -> str:
+        """Return the name ``"<first>|<second>"`` of a pair's row."""
+        return f"{first}|{second}"
+
+    def record_error(self, margins: np.ndarray, pair_names: Sequence[str]) -> None:
+        """Record ``d - d_safe`` per pair of a step whose rows were computed elsewhere.
+
+        The native step computes the rows in its kernel; this keeps :meth:`error` and
+        :attr:`pair_names` those of the last step.
+        """
+        self._margins = np.array(margins, dtype=float)
+        self.pair_names = tuple(pair_names)
+
     def distances(self, model: RobotModel) -> list[Distance]:
         """Distances of the pairs at ``model`` (order of the rows)."""
         return [_distance(s1, s2, model.nv) for _, s1, s2 in self._pairs(model)]
@@ -392,14 +406,24 @@ class ObstacleAvoidance(_DistanceTask):
             )
         return obstacle
 
-    def _pairs(self, model: RobotModel) -> list[tuple[str, _Segment, _Segment]]:
+    def selected_obstacles(self) -> list[Sphere | Capsule]:
+        """Return the obstacles avoided now (the named ones, or every sphere and capsule).
+
+        Raises:
+            UnknownName: A named obstacle that is no longer in the world.
+            InvalidInput: A named obstacle that is a box.
+
+        """
         if self.obstacles is None:
-            selected = [o for o in self.world if not isinstance(o, Box)]
-        else:
-            selected = [self._obstacle(n) for n in self.obstacles]
+            return [o for o in self.world if not isinstance(o, Box)]
+        return [self._obstacle(n) for n in self.obstacles]
+
+    def _pairs(self, model: RobotModel) -> list[tuple[str, _Segment, _Segment]]:
+        selected = self.selected_obstacles()
         robot = [(p, _robot_segment(model, p, self.where())) for p in self.proxies]
         return [
-            (f"{p.name}|{o.name}", seg, _obstacle_segment(o)) for p, seg in robot for o in selected
+            (self.pair_name(p.name, o.name), seg, _obstacle_segment(o))
+            for p, seg in robot for o in selected
         ]
 
 
@@ -447,7 +471,7 @@ class SelfCollision(_DistanceTask):
     def _pairs(self, model: RobotModel) -> list[tuple[str, _Segment, _Segment]]:
         return [
             (
-                f"{a.name}|{b.name}",
+                self.pair_name(a.name, b.name),
                 _robot_segment(model, a, self.where()),
                 _robot_segment(model, b, self.where()),
             )

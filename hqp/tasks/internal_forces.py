@@ -187,6 +187,18 @@ class InternalForcesTask(Task):
         """
         self._goal = check_array(values, (None,), f"{self.where()}: goal")
 
+    def goal_of(self, k: int) -> np.ndarray:
+        """Return the goal ``(k,)`` of ``k`` selected components (zero when none was set).
+
+        Raises:
+            InvalidInput: A goal of another size.
+
+        """
+        goal = np.zeros(k) if self._goal is None else self._goal
+        if goal.shape != (k,):
+            raise InvalidInput(f"{self.where()}: goal has {goal.shape[0]} entries, {k} components")
+        return goal
+
     def coordinates(self, model: RobotModel, layout: Layout) -> np.ndarray:
         """Map ``K`` ``(k, n)``: selected internal coordinates ``c = K x``.
 
@@ -216,10 +228,7 @@ class InternalForcesTask(Task):
 
         """
         K = self.coordinates(model, layout)
-        k = K.shape[0]
-        goal = np.zeros(k) if self._goal is None else self._goal
-        if goal.shape != (k,):
-            raise InvalidInput(f"{self.where()}: goal has {goal.shape[0]} entries, {k} components")
+        goal = self.goal_of(K.shape[0])
         self._last_goal = goal
         return Rows(A=K, b=goal.copy())
 

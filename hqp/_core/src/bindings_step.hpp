@@ -72,10 +72,62 @@ inline void bind_step(nb::module_& m) {
            nb::arg("kernel"))
       .def("add_constant", &NativeStep::add_constant, nb::arg("level"), nb::arg("weight"),
            nb::arg("A"), nb::arg("b"))
+      .def("add_gaze", &NativeStep::add_gaze, nb::arg("level"), nb::arg("weight"),
+           nb::arg("kernel"))
+      .def("add_internal_forces", &NativeStep::add_internal_forces, nb::arg("level"),
+           nb::arg("weight"), nb::arg("kernel"))
+      .def("add_distance", &NativeStep::add_distance, nb::arg("level"), nb::arg("weight"),
+           nb::arg("kernel"))
+      .def("add_pose", &NativeStep::add_pose, nb::arg("level"), nb::arg("weight"),
+           nb::arg("kernel"))
+      .def("add_effort", &NativeStep::add_effort, nb::arg("level"), nb::arg("weight"),
+           nb::arg("scale"))
+      .def("add_cop", &NativeStep::add_cop, nb::arg("level"), nb::arg("weight"),
+           nb::arg("kernel"))
+      .def(
+          "set_cop_goal",
+          [](NativeStep& s, int handle, const Eigen::Vector2d& g) { s.cop(handle).set_goal(g); },
+          nb::arg("handle"), nb::arg("goal"))
+      .def(
+          "set_pose_goal",
+          [](NativeStep& s, int handle, const Eigen::Matrix4d& H, const RobotCore::Vector6d& v,
+             const RobotCore::Vector6d& a) { s.pose(handle).set_goal(H, v, a); },
+          nb::arg("handle"), nb::arg("placement"), nb::arg("velocity"), nb::arg("acceleration"))
+      .def(
+          "set_force",
+          [](NativeStep& s, int handle, const Eigen::VectorXd& f) { s.pose(handle).set_force(f); },
+          nb::arg("handle"), nb::arg("force"))
+      .def(
+          "set_internal_goal",
+          [](NativeStep& s, int handle, const Eigen::VectorXd& g) {
+            s.internal_forces(handle).set_goal(g);
+          },
+          nb::arg("handle"), nb::arg("goal"))
+      .def(
+          "set_obstacle",
+          [](NativeStep& s, int handle, int obstacle, const Eigen::Vector3d& a,
+             const Eigen::Vector3d& b, const Eigen::Vector3d& velocity, double radius) {
+            s.distance(handle).set_obstacle(obstacle, a, b, velocity, radius);
+          },
+          nb::arg("handle"), nb::arg("obstacle"), nb::arg("a"), nb::arg("b"), nb::arg("velocity"),
+          nb::arg("radius"))
+      .def(
+          "margins",
+          [](NativeStep& s, int handle) { return Eigen::VectorXd(s.distance(handle).margins()); },
+          nb::arg("handle"), "d - d_safe per pair of a distance kernel at the last step.")
       .def(
           "set_goal",
           [](NativeStep& s, int handle, const Eigen::VectorXd& p, const Eigen::VectorXd& v,
-             const Eigen::VectorXd& a) { s.tracking(handle).set_goal(p, v, a); },
+             const Eigen::VectorXd& a) {
+            if (handle >= 0 && handle < s.entry_count() &&
+                s.entry_kind(handle) == NativeStep::Kind::kGaze) {
+              if (p.size() != 3 || v.size() != 3 || a.size() != 3)
+                throw std::invalid_argument("gaze: goal of the wrong size");
+              s.gaze(handle).set_goal(p, v, a);
+              return;
+            }
+            s.tracking(handle).set_goal(p, v, a);
+          },
           nb::arg("handle"), nb::arg("position"), nb::arg("velocity"), nb::arg("acceleration"))
       .def(
           "set_orientation_goal",
@@ -89,16 +141,24 @@ inline void bind_step(nb::module_& m) {
       .def(
           "kernel_error",
           [](NativeStep& s, int handle) {
-            if (handle >= 0 && handle < s.entry_count() &&
-                s.entry_kind(handle) == NativeStep::Kind::kOrientation) {
+            const bool known = handle >= 0 && handle < s.entry_count();
+            if (known && s.entry_kind(handle) == NativeStep::Kind::kOrientation) {
               return nb::make_tuple(Eigen::VectorXd(s.orientation(handle).error()),
                                     Eigen::VectorXd::Zero(3).eval());
+            }
+            if (known && s.entry_kind(handle) == NativeStep::Kind::kGaze) {
+              const GazeKernel& g = s.gaze(handle);
+              return nb::make_tuple(Eigen::VectorXd(g.error()), Eigen::VectorXd(g.rate()));
+            }
+            if (known && s.entry_kind(handle) == NativeStep::Kind::kPose) {
+              const PoseKernel& p = s.pose(handle);
+              return nb::make_tuple(Eigen::VectorXd(p.error()), Eigen::VectorXd(p.rate()));
             }
             const VectorTracking& t = s.tracking(handle);
             return nb::make_tuple(Eigen::VectorXd(t.error()), Eigen::VectorXd(t.rate()));
           },
           nb::arg("handle"),
-          "(e, de/dt) of a tracking or orientation kernel at the last step (e = current - goal).")
+          "(e, de/dt) of a tracking, orientation, gaze or pose kernel at the last step (e = current - goal).")
       .def("set_braking", &NativeStep::set_braking, nb::arg("handle"), nb::arg("braking"))
       .def(
           "step",

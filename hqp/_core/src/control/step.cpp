@@ -82,6 +82,63 @@ int NativeStep::add_constant(int level, double weight, const Eigen::MatrixXd& A,
   return add(Kind::kConstant, level, weight, int(constants_.size()) - 1, A.rows(), 0);
 }
 
+int NativeStep::add_gaze(int level, double weight, const GazeKernel& kernel) {
+  gaze_.push_back(kernel);
+  return add(Kind::kGaze, level, weight, int(gaze_.size()) - 1, kernel.rows(), 0);
+}
+
+int NativeStep::add_internal_forces(int level, double weight, const InternalForcesKernel& kernel) {
+  internal_.push_back(kernel);
+  return add(Kind::kInternalForces, level, weight, int(internal_.size()) - 1, kernel.rows(), 0);
+}
+
+int NativeStep::add_distance(int level, double weight, const DistanceKernel& kernel) {
+  distance_.push_back(kernel);
+  return add(Kind::kDistance, level, weight, int(distance_.size()) - 1, 0, kernel.rows());
+}
+
+int NativeStep::add_pose(int level, double weight, const PoseKernel& kernel) {
+  pose_.push_back(kernel);
+  return add(Kind::kPose, level, weight, int(pose_.size()) - 1, kernel.rows(), 0);
+}
+
+int NativeStep::add_effort(int level, double weight, const Eigen::VectorXd& scale) {
+  if (scale.size() != na_) throw std::invalid_argument("effort: one scale per actuated joint");
+  effort_.push_back(scale);
+  return add(Kind::kEffort, level, weight, int(effort_.size()) - 1, na_, 0);
+}
+
+int NativeStep::add_cop(int level, double weight, const CoPKernel& kernel) {
+  cop_.push_back(kernel);
+  return add(Kind::kCoP, level, weight, int(cop_.size()) - 1, kernel.rows(), 0);
+}
+
+const NativeStep::Entry& NativeStep::checked(int handle, Kind kind, const char* what) const {
+  if (handle < 0 || handle >= int(entries_.size()) || entries_[std::size_t(handle)].kind != kind)
+    throw std::invalid_argument(std::string("not a ") + what + " handle");
+  return entries_[std::size_t(handle)];
+}
+
+GazeKernel& NativeStep::gaze(int handle) {
+  return gaze_[std::size_t(checked(handle, Kind::kGaze, "gaze").index)];
+}
+
+InternalForcesKernel& NativeStep::internal_forces(int handle) {
+  return internal_[std::size_t(checked(handle, Kind::kInternalForces, "internal-forces").index)];
+}
+
+DistanceKernel& NativeStep::distance(int handle) {
+  return distance_[std::size_t(checked(handle, Kind::kDistance, "distance").index)];
+}
+
+PoseKernel& NativeStep::pose(int handle) {
+  return pose_[std::size_t(checked(handle, Kind::kPose, "pose").index)];
+}
+
+CoPKernel& NativeStep::cop(int handle) {
+  return cop_[std::size_t(checked(handle, Kind::kCoP, "cop").index)];
+}
+
 VectorTracking& NativeStep::tracking(int handle) {
   if (handle < 0 || handle >= int(entries_.size()) || entries_[handle].kind != Kind::kTracking)
     throw std::invalid_argument("not a tracking handle");
@@ -254,6 +311,29 @@ std::string NativeStep::step(const Eigen::Ref<const Eigen::VectorXd>& q,
       case Kind::kConstant:
         A = constants_[std::size_t(e.index)].first;
         b = constants_[std::size_t(e.index)].second;
+        break;
+      case Kind::kGaze:
+        if (const char* why = gaze_[std::size_t(e.index)].write(robot, A, b))
+          return std::string("gaze: ") + why;
+        break;
+      case Kind::kInternalForces:
+        if (const char* why = internal_[std::size_t(e.index)].write(robot, A, b))
+          return std::string("internal forces: ") + why;
+        break;
+      case Kind::kDistance:
+        distance_[std::size_t(e.index)].write(robot, dt, C, lo, up);
+        break;
+      case Kind::kPose:
+        pose_[std::size_t(e.index)].write(robot, A, b);
+        break;
+      case Kind::kEffort: {
+        const Eigen::VectorXd& w = effort_[std::size_t(e.index)];
+        A.noalias() = w.asDiagonal() * G_.bottomRows(na_);
+        b = -(w.array() * robot.h().tail(na_).array()).matrix();
+        break;
+      }
+      case Kind::kCoP:
+        cop_[std::size_t(e.index)].write(robot, A, b);
         break;
     }
     if (e.sqrt_w != 1.0) {

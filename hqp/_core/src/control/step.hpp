@@ -16,9 +16,14 @@
 #include "model/robot.hpp"
 #include "solver/hierarchy.hpp"
 #include "solver/linalg.hpp"
+#include "tasks/collision.hpp"
+#include "tasks/cop.hpp"
+#include "tasks/gaze.hpp"
+#include "tasks/internal_forces.hpp"
 #include "tasks/joint_limits.hpp"
 #include "tasks/orientation.hpp"
 #include "tasks/physics.hpp"
+#include "tasks/pose.hpp"
 #include "tasks/vector_tracking.hpp"
 
 namespace hqp {
@@ -27,7 +32,8 @@ class NativeStep {
  public:
   using Index = Eigen::Index;
   enum class Kind { kDynamics, kTorqueLimits, kContact, kContactLimits, kJointLimits,
-                    kTracking, kOrientation, kConstant };
+                    kTracking, kOrientation, kConstant, kGaze, kInternalForces, kDistance,
+                    kPose, kEffort, kCoP };
 
   NativeStep(std::unique_ptr<RobotCore> robot, Index nv_base, LayoutC layout, int n_levels,
              const Settings& settings);
@@ -45,7 +51,20 @@ class NativeStep {
   /// contact-force regularisation.
   int add_constant(int level, double weight, const Eigen::MatrixXd& A, const Eigen::VectorXd& b);
 
+  int add_gaze(int level, double weight, const GazeKernel& kernel);
+  int add_internal_forces(int level, double weight, const InternalForcesKernel& kernel);
+  int add_distance(int level, double weight, const DistanceKernel& kernel);
+  int add_pose(int level, double weight, const PoseKernel& kernel);
+  /// Minimum effort: rows diag(w) S [M | -J^T] x = -diag(w) S h (the torques, scaled by w).
+  int add_effort(int level, double weight, const Eigen::VectorXd& scale);
+  int add_cop(int level, double weight, const CoPKernel& kernel);
+
   VectorTracking& tracking(int handle);
+  GazeKernel& gaze(int handle);
+  InternalForcesKernel& internal_forces(int handle);
+  DistanceKernel& distance(int handle);
+  PoseKernel& pose(int handle);
+  CoPKernel& cop(int handle);
   OrientationTracking& orientation(int handle);
   ContactKernel& contact(int handle);
   void set_braking(int handle, const Eigen::VectorXd& braking);
@@ -99,6 +118,7 @@ class NativeStep {
     Eigen::VectorXd A, B, lb, ub;
   };
   int add(Kind kind, int level, double weight, int index, Index neq, Index nin);
+  const Entry& checked(int handle, Kind kind, const char* what) const;
   void layout_levels();
 
   std::unique_ptr<RobotCore> robot_;
@@ -110,6 +130,12 @@ class NativeStep {
   std::vector<ContactKernel> contacts_;
   std::vector<VectorTracking> tracking_;
   std::vector<OrientationTracking> orientation_;
+  std::vector<GazeKernel> gaze_;
+  std::vector<InternalForcesKernel> internal_;
+  std::vector<DistanceKernel> distance_;
+  std::vector<PoseKernel> pose_;
+  std::vector<Eigen::VectorXd> effort_;
+  std::vector<CoPKernel> cop_;
   std::vector<JointLimitEntry> joint_limits_;
   std::vector<Eigen::VectorXd> tau_max_;
   std::vector<std::pair<Eigen::MatrixXd, Eigen::VectorXd>> constants_;

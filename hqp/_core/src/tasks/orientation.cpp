@@ -54,27 +54,36 @@ void OrientationTracking::set_goal(const Eigen::Matrix3d& rotation,
   goal_a_ = acceleration;
 }
 
+void orientation_kinematics(const RobotCore& robot, int frame, const Eigen::Matrix3d& goal,
+                            const Eigen::Vector3d& goal_w, const Eigen::Vector3d& goal_a,
+                            RobotCore::Matrix6Xd& J6, Eigen::Ref<Eigen::MatrixXd> J,
+                            Eigen::Vector3d& e, Eigen::Vector3d& de, Eigen::Vector3d& drift) {
+  const Eigen::Index nv = robot.nv();
+  if (J6.cols() != nv) J6.resize(6, nv);
+  const Eigen::Matrix3d R = robot.frame_placement(frame).rotation();
+  const RobotCore::Vector6d vel = robot.frame_velocity(frame);
+  const RobotCore::Vector6d acc = robot.frame_drift(frame);
+  const Eigen::Vector3d w = vel.tail<3>();
+  const Eigen::Matrix3d Rt = R.transpose();
+  const Eigen::Matrix3d E = goal.transpose() * R;
+  e = pinocchio::log3(E);
+  Eigen::Matrix3d Jlog;
+  pinocchio::Jlog3(E, Jlog);
+  const Eigen::Vector3d xi = Rt * (w - goal_w);
+  const Eigen::Matrix3d JR = Jlog * Rt;
+  de = Jlog * xi;
+  drift = JR * (acc.tail<3>() + w.cross(goal_w) - goal_a) + jlog3_rate_times(e, de, xi);
+  robot.frame_jacobian(frame, J6);
+  J.noalias() = JR * J6.bottomRows<3>();
+}
+
 void OrientationTracking::write(const RobotCore& robot, Eigen::Ref<Eigen::MatrixXd> A,
                                 Eigen::Ref<Eigen::VectorXd> b) {
   const Eigen::Index nv = robot.nv();
-  if (J6_.cols() != nv) J6_.resize(6, nv);
-  const Eigen::Matrix3d R = robot.frame_placement(frame_).rotation();
-  const RobotCore::Vector6d vel = robot.frame_velocity(frame_);
-  const RobotCore::Vector6d acc = robot.frame_drift(frame_);
-  const Eigen::Vector3d w = vel.tail<3>();
-  const Eigen::Matrix3d Rt = R.transpose();
-  const Eigen::Matrix3d E = goal_.transpose() * R;
-  e_ = pinocchio::log3(E);
-  Eigen::Matrix3d Jlog;
-  pinocchio::Jlog3(E, Jlog);
-  const Eigen::Vector3d xi = Rt * (w - goal_w_);
-  const Eigen::Matrix3d JR = Jlog * Rt;
-  const Eigen::Vector3d de = Jlog * xi;
-  const Eigen::Vector3d drift =
-      JR * (acc.tail<3>() + w.cross(goal_w_) - goal_a_) + jlog3_rate_times(e_, de, xi);
-  robot.frame_jacobian(frame_, J6_);
   A.setZero();
-  A.leftCols(nv).noalias() = JR * J6_.bottomRows<3>();
+  Eigen::Vector3d de, drift;
+  orientation_kinematics(robot, frame_, goal_, goal_w_, goal_a_, J6_, A.leftCols(nv), e_, de,
+                         drift);
   pd_feedback(gains_, e_, de, a_);
   b = a_ - drift;
 }

@@ -17,6 +17,14 @@ namespace hqp {
 Eigen::Vector3d jlog3_rate_times(const Eigen::Vector3d& e, const Eigen::Vector3d& de,
                                  const Eigen::Vector3d& xi);
 
+/// e = log3(R_goal^T R), de/dt, its Jacobian J (3, nv) and drift at the updated model
+/// (hqp.tasks.orientation.orientation_kinematics): the goal's rotation, world angular
+/// velocity and acceleration. `J6` is a (6, nv) workspace. No allocation.
+void orientation_kinematics(const RobotCore& robot, int frame, const Eigen::Matrix3d& goal,
+                            const Eigen::Vector3d& goal_w, const Eigen::Vector3d& goal_a,
+                            RobotCore::Matrix6Xd& J6, Eigen::Ref<Eigen::MatrixXd> J,
+                            Eigen::Vector3d& e, Eigen::Vector3d& de, Eigen::Vector3d& drift);
+
 class OrientationTracking {
  public:
   OrientationTracking(int frame, const PDGains& gains);
