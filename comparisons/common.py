@@ -46,10 +46,12 @@ went past their limits in MuJoCo."""
 JOINT_VELOCITY_SCALE = 0.5
 """Fraction of the model's joint velocity limits used by the viable bounds."""
 
-BACKEND = "daqp"
-"""QP backend of the HQP controller in the scenarios. DAQP since the solver's robustness
-fixes (0 safe-mode steps on hand-reach); quadprog's basis solves were found suboptimal on
-some real problems (tests/test_solver_real.py)."""
+BACKEND = "native"
+"""QP backend of the HQP controller in the scenarios: ``"native"``, the default controller's
+(its steady steps on the native step, ``hqp.control.native``; the other steps on the Python
+step with the same C++ solver). Before session 10 the scenarios ran DAQP through the Python
+step (the same basis algorithm; quadprog's basis solves were found suboptimal on some real
+problems, tests/test_solver_real.py)."""
 
 
 @dataclass
