@@ -118,19 +118,24 @@ def test_native_step_meets_the_contract_at_agitated_states(name):
 
 
 def test_mirror_refuses_what_it_cannot_run():
-    """A state-dependent joint-limit bound (qdd_max=None) and a task without a kernel."""
+    """A state-dependent joint-limit bound (qdd_max=None) and a task without a kernel (the
+    null-space law's activation zones; a Python task of one's own)."""
+    from _h5_standins import PostureStandIn
+
     from hqp.control.native import NotSupported
-    from hqp.tasks.effort import EffortTask
+    from hqp.tasks.joint_limit_zone import JointLimitZone
     from hqp.tasks.joint_limits import JointLimits
 
     robot, ctrl = _standing("g1")
     ctrl.stack.add(JointLimits(name="jl_state", qdd_max=None), "joint_limits")
     with pytest.raises(NotSupported, match="qdd_max=None"):
         NativeStepMirror(robot, ctrl)
-    robot, ctrl = _standing("g1")
-    ctrl.stack.add(EffortTask(ctrl.model), "posture")
-    with pytest.raises(NotSupported, match="no native kernel"):
-        NativeStepMirror(robot, ctrl)
+    for make in (lambda m, r: JointLimitZone("zones"),
+                 lambda m, r: PostureStandIn("own", r.q_standing)):
+        robot, ctrl = _standing("g1")
+        ctrl.stack.add(make(ctrl.model, robot), "posture")
+        with pytest.raises(NotSupported, match="no native kernel"):
+            NativeStepMirror(robot, ctrl)
 
 
 def test_controller_suite_row_of_the_native_core_is_the_native_step():
