@@ -326,3 +326,35 @@ def test_collision_kernels_run_natively(name):
             world.step(0.001)
     assert finite > 0  # the obstacle is within the rows' influence
     assert nat.native.unsupported is None and nat.native.steps >= 9
+
+
+def test_a_failed_native_solve_is_solved_on_the_fallback_backend(monkeypatch):
+    """A native step whose solve fails: the Python step of the same state solves it on the
+    fallback backend (DAQP) without solving it again on the same C++ solver, and says so."""
+    robot, nat, _py = _pair("g1", "residuals")
+    states = list(_states(robot, nat.model, 4, seed=3))
+    for t, state in states[:3]:
+        nat.step(state, t)
+    mirror = nat.native.mirror
+    assert mirror is not None and nat.native.steps >= 1
+
+    def failing_step(q, v, t):
+        raise RuntimeError("level 4: the native QP (DAQP) returned a non-finite solution")
+
+    def primary_solve(*args, **kwargs):
+        raise AssertionError("the failed native solve was solved again on the native solver")
+
+    monkeypatch.setattr(mirror, "step", failing_step)
+    monkeypatch.setattr(nat.resolver.solver, "solve", primary_solve)
+    steps = nat.native.steps
+    t, state = states[3]
+    command = nat.step(state, t)
+    assert nat.native.steps == steps and not command.safe_mode
+    assert np.isfinite(command.tau).all()
+    assert any("native step: level 4" in n and "'daqp'" in n for n in command.report.notes), \
+        command.report.notes
+    assert nat._native_failure is None  # consumed by this step
+    monkeypatch.undo()
+    t2, state2 = t + 0.001, states[3][1]
+    assert not nat.step(state2, t2).report.notes  # the next step is native again, quiet
+    assert nat.native.steps == steps + 1

@@ -260,3 +260,44 @@ def test_core_links_the_wheels_pinocchio():
         assert mass == pytest.approx(pin.computeTotalMass(model), rel=1e-12)
         np.testing.assert_allclose(M, pin.crba(model, data, q), atol=1e-10)
         np.testing.assert_allclose(h, pin.nonLinearEffects(model, data, q, v), atol=1e-9)
+
+
+THIN = Path(__file__).resolve().parent / "data" / "thin_set_levels.npz"
+
+
+def _thin_levels() -> list[Level]:
+    """Hand-reach ``shared`` on paper-humanoid at t = 49 ms (``hqp compare hand-reach``, the
+    HQP controller's built levels at the step where the native solve failed)."""
+    name = "hand_reach_shared"
+    with np.load(THIN) as d:
+        def get(j, key):
+            k = f"{name}_L{j}_{key}"
+            return d[k] if k in d else None
+
+        return [Level(A=get(j, "A"), b=get(j, "b"), C=get(j, "C"), lower=get(j, "lower"),
+                      upper=get(j, "upper"), name=str(d[f"{name}_L{j}_name"]))
+                for j in range(int(d[f"{name}_levels"]))]
+
+
+def test_a_thin_feasible_set_is_solved_by_the_python_fallback():
+    """The levels the native step could not solve: the Python basis algorithm on DAQP (the
+    controller's fallback) solves them, with the level costs ProxQP's independent path finds
+    down to the conflicting cog+hand level (the posture level below it differs by 1 %: it
+    depends on which point of that level's thin optimal set each path stands on)."""
+    levels = _thin_levels()
+    daqp = HierarchicalSolver("daqp", "basis").solve(levels)
+    prox = HierarchicalSolver("proxsuite", "basis").solve(levels)
+    assert np.isfinite(daqp.x).all()
+    np.testing.assert_allclose(daqp.costs[:3], 0.0, atol=1e-10)
+    np.testing.assert_allclose(daqp.costs[3], prox.costs[3], rtol=1e-6)
+    assert daqp.costs[3] > 1e-3  # the hand and the centre of gravity conflict
+
+
+@pytest.mark.xfail(strict=True, raises=hqp.HQPError, reason=(
+    "open defect (issue 17, thin feasible sets): the native solver's point of the conflicting "
+    "cog+hand level leaves the posture level's QP (carried rows of that level's optimal set) "
+    "a feasible set DAQP's dual steps report infeasible under every retry, and ProxQP stops "
+    "at its iteration cap; the controller then solves the step on the Python path (DAQP)"))
+def test_the_native_solver_solves_a_thin_feasible_set():
+    sol = HierarchicalSolver("native", "basis").solve(_thin_levels())
+    assert np.isfinite(sol.x).all()

@@ -114,11 +114,22 @@ class HQPResolver:
         return self._fallbacks[0]
 
     def solve(self, model: RobotModel, layout: Layout, stack: Stack, built: BuiltStack,
-              t: float, notes: list[str]) -> tuple[np.ndarray, np.ndarray] | None:
-        """Solve the built levels: ``(x, tau)``, or ``None`` (reason in ``notes``) for safe mode."""
+              t: float, notes: list[str], *,
+              failed: str | None = None) -> tuple[np.ndarray, np.ndarray] | None:
+        """Solve the built levels: ``(x, tau)``, or ``None`` (reason in ``notes``) for safe mode.
+
+        ``failed``: why the native step's solve of these same levels failed (the controller's
+        native step, whose rows are the Python rows to rounding). With the ``"native"``
+        backend the primary solver is then skipped: it is the same C++ solver, and a failed
+        native solve has already spent its retries (up to a second on the thin feasible sets
+        of a conflict, issue 17); the fallback backend solves the step.
+        """
         self.last_solution = None
         failure = ""
-        for solver in (self.solver, None):
+        primary: HierarchicalSolver | None = self.solver
+        if failed is not None and self.backend == "native":
+            primary, failure = None, f"native step: {failed}"
+        for solver in (primary, None):
             if solver is None:  # the primary backend failed: one retry on the fallback
                 solver = self.fallback()
                 if solver is None:

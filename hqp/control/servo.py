@@ -283,6 +283,7 @@ class WholeBodyController(Controller):
         self.last_tau: np.ndarray | None = None
         self._last_built: BuiltStack | None = None
         self._native_levels: NativeStepMirror | None = None  # last step native: built on demand
+        self._native_failure: str | None = None  # why this step's native solve failed
         self._blend_start: float | None = None
         self._blend_delta: np.ndarray | None = None
         self._blend_notes: tuple[str, ...] = ()
@@ -415,7 +416,12 @@ class WholeBodyController(Controller):
         t2 = clock()
         notes: list[str] = []
         tau_before = None if before is None else self._solve_before(before, t)
-        result = self.resolver.solve(self.model, self.layout, self.stack, built, t, notes)
+        failed, self._native_failure = self._native_failure, None
+        if failed is not None and isinstance(self.resolver, HQPResolver):
+            result = self.resolver.solve(self.model, self.layout, self.stack, built, t, notes,
+                                         failed=failed)
+        else:
+            result = self.resolver.solve(self.model, self.layout, self.stack, built, t, notes)
         t3 = clock()
         safe = result is None
         if result is None:
@@ -474,7 +480,8 @@ class WholeBodyController(Controller):
         clock = time.perf_counter
         try:
             x, tau = mirror.step(q, v, t)
-        except RuntimeError:
+        except RuntimeError as exc:  # the Python step solves it on the fallback backend
+            self._native_failure = str(exc).splitlines()[0] if str(exc) else "failed"
             return None
         mirror.record_errors()
         t3 = clock()
