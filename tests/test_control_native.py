@@ -330,7 +330,7 @@ def test_collision_kernels_run_natively(name):
 
 def test_a_failed_native_solve_is_solved_on_the_fallback_backend(monkeypatch):
     """A native step whose solve fails: the Python step of the same state solves it on the
-    fallback backend (DAQP) without solving it again on the same C++ solver, and says so."""
+    fallback backend (DAQP) first, not again on the same C++ solver, and says so."""
     robot, nat, _py = _pair("g1", "residuals")
     states = list(_states(robot, nat.model, 4, seed=3))
     for t, state in states[:3]:

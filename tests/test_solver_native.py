@@ -265,10 +265,11 @@ def test_core_links_the_wheels_pinocchio():
 THIN = Path(__file__).resolve().parent / "data" / "thin_set_levels.npz"
 
 
-def _thin_levels() -> list[Level]:
-    """Hand-reach ``shared`` on paper-humanoid at t = 49 ms (``hqp compare hand-reach``, the
-    HQP controller's built levels at the step where the native solve failed)."""
-    name = "hand_reach_shared"
+def _thin_levels(name: str = "hand_reach_shared") -> list[Level]:
+    """Built levels of the HQP controller at steps of ``hqp compare`` on the native step
+    (paper-humanoid, session 10): ``hand_reach_shared`` at t = 49 ms, where the native
+    solve failed; ``screwgun`` (``cog-first``) at t = 1.878 s, where every solver of the
+    native step's fallbacks but the cascade failed."""
     with np.load(THIN) as d:
         def get(j, key):
             k = f"{name}_L{j}_{key}"
@@ -301,3 +302,30 @@ def test_a_thin_feasible_set_is_solved_by_the_python_fallback():
 def test_the_native_solver_solves_a_thin_feasible_set():
     sol = HierarchicalSolver("native", "basis").solve(_thin_levels())
     assert np.isfinite(sol.x).all()
+
+
+def test_the_native_fallbacks_end_with_the_cascade_which_solves_a_thin_set_the_basis_cannot():
+    """The native solver's fallbacks (``HQPResolver.fallbacks``): DAQP, quadprog, then the
+    cascade on DAQP. At the screwgun step the basis algorithm fails on DAQP and quadprog (as
+    on the native solver); the cascade solves it, with the higher levels exact."""
+    from hqp.control.resolver import HQPResolver
+
+    chain = HQPResolver("native").fallbacks()
+    assert [(f.backend_name, f.algorithm) for f in chain] == [
+        ("daqp", "basis"), ("quadprog", "basis"), ("daqp", "cascade")]
+    assert [(f.backend_name, f.algorithm) for f in HQPResolver("proxsuite").fallbacks()] == [
+        ("daqp", "basis")]
+    levels = _thin_levels("screwgun")
+    for backend in ("native", "daqp", "quadprog"):
+        with pytest.raises(hqp.HQPError, match="level 6"):
+            HierarchicalSolver(backend, "basis").solve(levels)
+    sol = chain[-1].solve(levels)
+    assert np.isfinite(sol.x).all()
+    np.testing.assert_allclose(sol.costs[:5], 0.0, atol=1e-9)
+    for L in levels[:3]:  # the constraint levels hold
+        if L.C is not None:
+            c = L.C @ sol.x
+            assert np.all(c >= L.lower - 1e-6 * np.maximum(1, abs(L.lower))) and \
+                np.all(c <= L.upper + 1e-6 * np.maximum(1, abs(L.upper)))
+        else:
+            np.testing.assert_allclose(L.A @ sol.x, L.b, atol=1e-7 * max(1, abs(L.b).max()))

@@ -64,7 +64,7 @@ def finite_level(level: Level) -> bool:
 
 
 class HQPResolver:
-    """The strict hierarchy of QPs, with one retry on a fallback backend.
+    """The strict hierarchy of QPs, with retries on fallback backends (:meth:`fallbacks`).
 
     Args:
         backend: QP backend of the solver (``"proxsuite"``, ``"osqp"``, ``"daqp"``,
@@ -102,38 +102,52 @@ class HQPResolver:
             self.solver.reset()
 
     def fallback(self) -> HierarchicalSolver | None:
-        """Return the solver of the fallback backend (created once), or ``None`` if none.
+        """Return the first fallback solver (see :meth:`fallbacks`), or ``None`` if none."""
+        chain = self.fallbacks()
+        return chain[0] if chain else None
 
-        DAQP (an exact active-set method) backs up the other backends, quadprog backs up DAQP.
+    def fallbacks(self) -> list[HierarchicalSolver]:
+        """Return the solvers tried in turn where the primary fails (created once).
+
+        DAQP (an exact active-set method) backs up the other backends, quadprog backs up
+        DAQP. The native solver is backed up by DAQP, quadprog, then the cascade algorithm on
+        DAQP, found on the thin feasible sets of conflicts (issue 17): in ``hqp compare
+        box-grab`` on the native step, quadprog's dual method solved levels where the
+        native solver and DAQP both failed; at a screwgun step (t = 1.878 s) the basis
+        algorithm failed on every backend but ProxQP while the cascade solved it on DAQP and
+        on quadprog (``tests/data/thin_set_levels.npz``). A step none of them solves gets
+        the safe command.
         """
         if not self._fallbacks:
-            name = "daqp" if self.backend != "daqp" else "quadprog"
-            if name not in available_backends():
-                return None
-            self._fallbacks.append(HierarchicalSolver(name, self.algorithm))
-        return self._fallbacks[0]
+            chain = {"daqp": (("quadprog", self.algorithm),),
+                     "native": (("daqp", "basis"), ("quadprog", "basis"), ("daqp", "cascade"))
+                     }.get(self.backend, (("daqp", self.algorithm),))
+            for name, algorithm in chain:
+                if name in available_backends():
+                    self._fallbacks.append(HierarchicalSolver(name, algorithm))
+        return [f for f in self._fallbacks if f is not None]
 
     def solve(self, model: RobotModel, layout: Layout, stack: Stack, built: BuiltStack,
               t: float, notes: list[str], *,
               failed: str | None = None) -> tuple[np.ndarray, np.ndarray] | None:
         """Solve the built levels: ``(x, tau)``, or ``None`` (reason in ``notes``) for safe mode.
 
+        The primary solver first, then :meth:`fallbacks` in turn, each failure noted.
         ``failed``: why the native step's solve of these same levels failed (the controller's
         native step, whose rows are the Python rows to rounding). With the ``"native"``
-        backend the primary solver is then skipped: it is the same C++ solver, and a failed
+        backend the fallbacks are then tried first and this resolver's own native solver
+        (the same C++ solver, warm started from another memory) only after them: a failed
         native solve has already spent its retries (up to a second on the thin feasible sets
-        of a conflict, issue 17); the fallback backend solves the step.
+        of a conflict before the cap of session 10, issue 17); on hand-reach ``shared`` DAQP
+        solved such levels in 8 ms (tests/data/thin_set_levels.npz).
         """
         self.last_solution = None
         failure = ""
-        primary: HierarchicalSolver | None = self.solver
+        chain = [self.solver, *self.fallbacks()]
         if failed is not None and self.backend == "native":
-            primary, failure = None, f"native step: {failed}"
-        for solver in (primary, None):
-            if solver is None:  # the primary backend failed: one retry on the fallback
-                solver = self.fallback()
-                if solver is None:
-                    break
+            chain, failure = chain[1:] + chain[:1], f"native step: {failed}"
+        for solver in chain:
+            if failure:
                 notes.append(f"{failure}; solved again with backend {solver.backend_name!r}")
                 logger.info("t=%.4f: %s; retrying with %s", t, failure, solver.backend_name)
             try:
