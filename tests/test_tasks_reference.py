@@ -189,3 +189,47 @@ def test_bad_trajectory_input() -> None:
         MinimumJerk(np.zeros(2), np.ones(3), 1.0)
     with pytest.raises(InvalidInput, match="rotation"):
         MinimumJerkRotation(np.eye(3), 2 * np.eye(3), 1.0)
+
+
+def test_bundled_trajectories_are_checked_once_and_others_at_every_sample():
+    """goal_at trusts the samples of a bundled trajectory after set_trajectory checked its
+    shapes (a wrong-size MinimumJerk is refused there); a trajectory of one's own is
+    validated at every sample (a NaN sample is refused naming the primitive)."""
+    import pinocchio as pin
+
+    from hqp import robots
+    from hqp.errors import InvalidInput
+    from hqp.tasks.orientation import OrientationTask
+    from hqp.tasks.position import PositionTask
+    from hqp.tasks.reference import MinimumJerk, MinimumJerkRotation, TrajectorySample
+
+    robot = robots.load("g1")
+    m = robot.model()
+    m.update(robot.q_standing, np.zeros(m.nv))
+    pos = PositionTask(m, robot.hands[0], name="hand")
+    pos.set_goal(np.full(3, 0.25))
+    with pytest.raises(InvalidInput, match="hand"):
+        pos.set_trajectory(MinimumJerk(np.zeros(2), np.ones(2), 1.0))  # 2 values for 3 axes
+    assert pos.trajectory is None  # the goal is kept
+    np.testing.assert_array_equal(pos.goal_at(0.0).position, np.full(3, 0.25))
+    traj = MinimumJerk(np.zeros(3), np.ones(3), 1.0)
+    pos.set_trajectory(traj)
+    for t in (-1.0, 0.3, 0.7, 2.0):
+        g, s = pos.goal_at(t), traj.sample(t)
+        np.testing.assert_array_equal(g.position, s.position)
+        np.testing.assert_array_equal(g.acceleration, s.acceleration)
+    ori = OrientationTask(m, robot.hands[0], name="wrist")
+    rot = MinimumJerkRotation(np.eye(3), pin.SE3.Random().rotation, 1.0, 0.5)
+    ori.set_trajectory(rot)
+    R = ori.goal_at(0.9).position
+    np.testing.assert_allclose(R.T @ R, np.eye(3), atol=1e-12)
+
+    class Broken:
+        def sample(self, t):
+            p = np.full(3, np.nan) if t > 0.5 else np.zeros(3)
+            return TrajectorySample(p, np.zeros(3), np.zeros(3))
+
+    pos.set_trajectory(Broken())
+    pos.goal_at(0.1)
+    with pytest.raises(InvalidInput, match="hand"):
+        pos.goal_at(0.6)

@@ -210,6 +210,7 @@ class Behavior:
         safety_task = self._feasibility(report, t)
         phase = self.phase_spec
         target = None
+        env: dict[str, Any] | None = None
         if safety_task is not None and phase.safety is not None:
             status = report[safety_task] if report is not None else None
             self.events.append(FeasibilityEvent(
@@ -230,7 +231,8 @@ class Behavior:
                     break
         if target is not None:
             self._enter(target, state, t)
-        self._set_goals(state, t)
+            env = None  # the phase and its phase_time changed
+        self._set_goals(state, t, env)
 
     def step(self, state: RobotState, t: float) -> Command:
         """One control step: the controller's command at ``state``, then :meth:`update`.
@@ -371,9 +373,11 @@ class Behavior:
         err = np.asarray(self.tasks[name].error(), dtype=float)
         return float(np.linalg.norm(err)) if err.size else float("inf")
 
-    def _set_goals(self, state: RobotState, t: float) -> None:
+    def _set_goals(self, state: RobotState, t: float,
+                   base_env: dict[str, Any] | None = None) -> None:
+        """Evaluate and set the phase's goals; ``base_env``: this step's expression
+        environment if the caller built it in this phase (built here otherwise)."""
         phase = self.phase_spec
-        base_env = None
         for ts in phase.action.tasks:
             goals = dict(ts.goals)
             goals.update(phase.goals.get(ts.name, {}))

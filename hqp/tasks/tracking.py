@@ -30,11 +30,16 @@ from hqp.errors import InvalidInput, check_array
 from hqp.tasks.base import Rows, Task
 from hqp.tasks.reference import (
     MinimumJerk,
+    MinimumJerkPose,
+    MinimumJerkRotation,
     PDReference,
     Trajectory,
     TrajectorySample,
     check_trajectory,
 )
+
+_VALIDATED_TRAJECTORIES = (MinimumJerk, MinimumJerkRotation, MinimumJerkPose)
+"""The bundled trajectories: their samples are valid by construction (see ``goal_at``)."""
 
 if TYPE_CHECKING:
     from hqp.model import RobotModel
@@ -144,6 +149,7 @@ class TrackingTask(Task):
         self.reference = gains.reference(self.where())
         self._goal: TrajectorySample | None = None
         self._trajectory: Trajectory | None = None
+        self._trusted = False  # samples of a bundled trajectory: see goal_at
         self._last: TaskKinematics | None = None
         self._last_reference: np.ndarray = np.zeros(0)
         self._recorded: np.ndarray | None = None  # e of a step computed elsewhere
@@ -182,14 +188,20 @@ class TrackingTask(Task):
     def set_trajectory(self, trajectory: Trajectory) -> None:
         """Follow a goal trajectory (sampled at the time passed to :meth:`rows`).
 
-        The samples must have the shapes :meth:`set_goal` accepts; they are
-        checked at every sample.
+        The samples must have the shapes :meth:`set_goal` accepts; a bundled trajectory's
+        are checked here, any other's at every sample (see :meth:`goal_at`).
 
         Raises:
-            InvalidInput: ``trajectory`` has no ``sample`` method.
+            InvalidInput: ``trajectory`` has no ``sample`` method, or a bundled trajectory
+                of the wrong shape (the task's goal is then left as it was).
 
         """
-        self._trajectory = check_trajectory(trajectory, self.where())
+        checked = check_trajectory(trajectory, self.where())
+        trusted = type(checked) in _VALIDATED_TRAJECTORIES
+        if trusted:  # its shapes, once (before anything is replaced)
+            s = checked.sample(0.0)
+            self._check_goal(s.position, s.velocity, s.acceleration)
+        self._trajectory, self._trusted = checked, trusted
         self._goal = None
 
     @property
@@ -200,12 +212,20 @@ class TrackingTask(Task):
     def goal_at(self, t: float) -> TrajectorySample:
         """Return the goal and its derivatives at time ``t`` (validated).
 
+        A sample of a bundled trajectory (``MinimumJerk``, ``MinimumJerkRotation``,
+        ``MinimumJerkPose``: endpoints and timing validated when built, fresh finite arrays
+        at every time) is not validated again once its shapes were checked by
+        :meth:`set_trajectory` (about 40 us per orientation sample); any other trajectory's
+        samples are validated at every call.
+
         Raises:
             InvalidInput: No goal set, or a trajectory sample of the wrong shape.
 
         """
         if self._trajectory is not None:
             s = self._trajectory.sample(t)
+            if self._trusted:
+                return s
             return self._check_goal(s.position, s.velocity, s.acceleration)
         if self._goal is None:
             raise InvalidInput(f"{self.where()}: goal not set (call set_goal or set_trajectory)")
