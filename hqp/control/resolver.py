@@ -87,7 +87,7 @@ class HQPResolver:
         self.final_metric = final_metric
         self.final_target = final_target
         self.last_solution: Solution | None = None
-        self._fallbacks: list[HierarchicalSolver | None] = []  # shared with twins
+        self._fallbacks: list[HierarchicalSolver] = []  # shared with twins (filled in place)
 
     def twin(self) -> HQPResolver:
         """Return a resolver of the same backend and tie-break with its own solver."""
@@ -122,10 +122,9 @@ class HQPResolver:
             chain = {"daqp": (("quadprog", self.algorithm),),
                      "native": (("daqp", "basis"), ("quadprog", "basis"), ("daqp", "cascade"))
                      }.get(self.backend, (("daqp", self.algorithm),))
-            for name, algorithm in chain:
-                if name in available_backends():
-                    self._fallbacks.append(HierarchicalSolver(name, algorithm))
-        return [f for f in self._fallbacks if f is not None]
+            self._fallbacks.extend(HierarchicalSolver(name, algorithm)
+                                   for name, algorithm in chain if name in available_backends())
+        return self._fallbacks
 
     def solve(self, model: RobotModel, layout: Layout, stack: Stack, built: BuiltStack,
               t: float, notes: list[str], *,

@@ -417,11 +417,11 @@ class WholeBodyController(Controller):
         notes: list[str] = []
         tau_before = None if before is None else self._solve_before(before, t)
         failed, self._native_failure = self._native_failure, None
-        if failed is not None and isinstance(self.resolver, HQPResolver):
-            result = self.resolver.solve(self.model, self.layout, self.stack, built, t, notes,
-                                         failed=failed)
-        else:
-            result = self.resolver.solve(self.model, self.layout, self.stack, built, t, notes)
+        # only the HQP resolver runs a native step whose failure it can be told of
+        extra = {"failed": failed} if failed is not None and isinstance(
+            self.resolver, HQPResolver) else {}
+        result = self.resolver.solve(self.model, self.layout, self.stack, built, t, notes,
+                                     **extra)
         t3 = clock()
         safe = result is None
         if result is None:
