@@ -375,8 +375,11 @@ class Behavior:
 
     def _set_goals(self, state: RobotState, t: float,
                    base_env: dict[str, Any] | None = None) -> None:
-        """Evaluate and set the phase's goals; ``base_env``: this step's expression
-        environment if the caller built it in this phase (built here otherwise)."""
+        """Evaluate and set the phase's goals.
+
+        ``base_env``: this step's expression environment if the caller built it in this
+        phase (built here otherwise).
+        """
         phase = self.phase_spec
         for ts in phase.action.tasks:
             goals = dict(ts.goals)

@@ -11,9 +11,9 @@ torque limits, viable joint limits with a fixed or support-dependent braking, Co
 centroidal momentum, orientation, position and posture tasks, the contact-force
 regularisation), gaze, pose and hybrid force/position tasks, internal forces, obstacle
 avoidance and self-collision (capsule distances), minimum effort, the centre of pressure, with
-goals and trajectories, contacts made and released, in a steady stack (no task ramping in, no contact unloading, no
-torque blend; :meth:`hqp.stack.Stack.steady`). Anything else raises :class:`NotSupported`
-(a task without a kernel) or is left to the Python step for that step (a stack that is not
+goals and trajectories, contacts made and released, in a steady stack (no task ramping in,
+no contact unloading, no torque blend; :meth:`hqp.stack.Stack.steady`). Anything else
+raises :class:`NotSupported` (a task without a kernel) or is left to the Python step for that step (a stack that is not
 steady).
 
 :class:`NativeEngine` is what a :class:`~hqp.control.servo.WholeBodyController` runs: the
@@ -191,7 +191,7 @@ class NativeStepMirror:
             raise NotSupported(f"{task.where()}: no native kernel for {type(task).__name__}")
 
     def _frame_of(self, task: Any, frame: str) -> int:
-        """The native frame index (a frame the model lacks: the Python step raises its error)."""
+        """Return the native frame index (a frame the model lacks: the Python step raises)."""
         fid = self._frame(frame)
         if fid < 0:
             raise NotSupported(f"{task.where()}: frame {frame!r} is not in the model")
