@@ -13,8 +13,8 @@ regularisation), gaze, pose and hybrid force/position tasks, internal forces, ob
 avoidance and self-collision (capsule distances), minimum effort, the centre of pressure, with
 goals and trajectories, contacts made and released, in a steady stack (no task ramping in,
 no contact unloading, no torque blend; :meth:`hqp.stack.Stack.steady`). Anything else
-raises :class:`NotSupported` (a task without a kernel) or is left to the Python step for that step (a stack that is not
-steady).
+raises :class:`NotSupported` (a task without a kernel) or is left to the Python step for that
+step (a stack that is not steady).
 
 :class:`NativeEngine` is what a :class:`~hqp.control.servo.WholeBodyController` runs: the
 mirror of its stack, rebuilt when the stack's structure or a task's parameters change, and
