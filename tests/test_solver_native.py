@@ -294,20 +294,30 @@ def test_a_thin_feasible_set_is_solved_by_the_python_fallback():
     assert daqp.costs[3] > 1e-3  # the hand and the centre of gravity conflict
 
 
-@pytest.mark.xfail(strict=True, raises=hqp.HQPError, reason=(
-    "open defect (issue 17, thin feasible sets): the native solver's point of the conflicting "
-    "cog+hand level leaves the posture level's QP (carried rows of that level's optimal set) "
-    "a feasible set DAQP's dual steps report infeasible under every retry, and ProxQP stops "
-    "at its iteration cap; the controller then solves the step on the Python path (DAQP)"))
-def test_the_native_solver_solves_a_thin_feasible_set():
-    sol = HierarchicalSolver("native", "basis").solve(_thin_levels())
-    assert np.isfinite(sol.x).all()
+@pytest.mark.parametrize("name", ["hand_reach_shared", "screwgun"])
+def test_the_native_solver_solves_a_thin_feasible_set(name):
+    """The thin feasible sets: carried rows held with positive multipliers (active over the
+    conflicting level's whole optimal set) become equalities of the basis, so no level below
+    is left a set of no width that DAQP's dual steps report infeasible. Native, the Python
+    oracle on DAQP and on quadprog agree on every level's cost but the last to the contract's
+    1e-6. The last (posture, sigma_min 0: more rows than free directions) is not compared:
+    there the exact methods spread over 5 % (session 12, screwgun: native 27468, Python
+    basis on DAQP 27463 and on quadprog 27408, ProxQP 27441, the cascades 26074; the native
+    solve takes the absorbing pass, the oracle's quadprog last resort spares it that pass):
+    the weak directions of issue 17, not a tolerance of this fix."""
+    levels = _thin_levels(name)
+    native = HierarchicalSolver("native", "basis").solve(levels)
+    assert np.isfinite(native.x).all()
+    for backend in ("daqp", "quadprog"):
+        ref = HierarchicalSolver(backend, "basis").solve(levels)
+        np.testing.assert_allclose(native.costs[:-1], ref.costs[:-1], rtol=1e-6, atol=1e-10)
+    assert native.costs[-2] > 1e-3  # the conflict is there (cog+hand, or screwgun's level 5)
 
 
-def test_the_native_fallbacks_end_with_the_cascade_which_solves_a_thin_set_the_basis_cannot():
+def test_the_native_fallbacks_end_with_the_cascade():
     """The native solver's fallbacks (``HQPResolver.fallbacks``): DAQP, quadprog, then the
-    cascade on DAQP. At the screwgun step the basis algorithm fails on DAQP and quadprog (as
-    on the native solver); the cascade solves it, with the higher levels exact."""
+    cascade on DAQP. The cascade solves the thin screwgun step too, with the higher levels
+    exact and the conflicting level's cost the basis algorithm's."""
     from hqp.control.resolver import HQPResolver
 
     chain = HQPResolver("native").fallbacks()
@@ -316,12 +326,11 @@ def test_the_native_fallbacks_end_with_the_cascade_which_solves_a_thin_set_the_b
     assert [(f.backend_name, f.algorithm) for f in HQPResolver("proxsuite").fallbacks()] == [
         ("daqp", "basis")]
     levels = _thin_levels("screwgun")
-    for backend in ("native", "daqp", "quadprog"):
-        with pytest.raises(hqp.HQPError, match="level 6"):
-            HierarchicalSolver(backend, "basis").solve(levels)
+    basis = HierarchicalSolver("native", "basis").solve(levels)
     sol = chain[-1].solve(levels)
     assert np.isfinite(sol.x).all()
     np.testing.assert_allclose(sol.costs[:5], 0.0, atol=1e-9)
+    np.testing.assert_allclose(sol.costs[5], basis.costs[5], rtol=1e-6)
     for L in levels[:3]:  # the constraint levels hold
         if L.C is not None:
             c = L.C @ sol.x

@@ -38,7 +38,15 @@ from typing import Any
 import numpy as np
 
 from hqp.errors import SolverFailure
-from hqp.solver.active_set import CarriedRows, Guess, LevelRows, guess_from_point, solve_guess
+from hqp.solver.active_set import (
+    ABSORB_TOL,
+    CarriedRows,
+    Guess,
+    LevelRows,
+    guess_from_point,
+    held_multipliers,
+    solve_guess,
+)
 from hqp.solver.backends import QPBackend
 from hqp.solver.carried import FEAS_TOL, Carried, inequality_offsets, within
 from hqp.solver.level import CheckedLevel, Internal
@@ -108,6 +116,7 @@ class BasisAlgorithm:
         self.buffers = QPBuffers(level_rows_first=True)
         self.needed_qp: dict[Any, tuple[int, int, int]] = {}
         self._qp_count = 0  # QPs of the current solve
+        self._absorb = False  # this pass absorbs (see solve)
 
     def reset(self) -> None:
         """Forget the warm start's memory."""
@@ -119,10 +128,33 @@ class BasisAlgorithm:
     ) -> tuple[np.ndarray, list[float], int, list[float]]:
         """Solve the levels (the internal final ones included).
 
+        A level whose QP no backend solves (a thin feasible set: carried rows active over
+        a whole optimal set above it, implicit equalities the QP's dual steps report
+        infeasible) sends the solve to a second pass that absorbs those rows
+        (:meth:`_absorbed`). Only then: the multipliers that decide absorption come from
+        one dual solution (NNLS) of a degenerate vertex, and at nearly dependent rows they
+        are only as good as the dual tolerance, so a first pass that succeeds keeps the
+        rows as inequalities.
+
         Returns:
             ``(x, sigma_min per user level, QP count, seconds per level)``.
 
         """
+        try:
+            return self._solve_pass(all_levels, n)
+        except SolverFailure:
+            first = self._qp_count
+            self._absorb = True
+            try:
+                x, sigmas, count, times = self._solve_pass(all_levels, n)
+            finally:
+                self._absorb = False
+            return x, sigmas, first + count, times
+
+    def _solve_pass(
+        self, all_levels: list[tuple[CheckedLevel, int]], n: int
+    ) -> tuple[np.ndarray, list[float], int, list[float]]:
+        """One pass of :meth:`solve` (absorbing rows if ``self._absorb``)."""
         opt = _OptimalSet(n)
         offsets, total_in = inequality_offsets(all_levels)
         pending: list[tuple[CheckedLevel, Any, Any, Any]] = []
@@ -163,14 +195,21 @@ class BasisAlgorithm:
         has_carried = carried.count > 0
         Ak = opt.project(A)
         bk = lv.b - A @ opt.x
+        # a level of equality rows alone that the basis no longer reaches (A Z below the rank
+        # tolerance: its rows in the span of the equalities above, absorbed rows among them)
+        # has a constant cost over the feasible set: its point is x, found by least squares
+        # (rank 0), never by a QP whose Hessian would be rounding noise
+        inert = mi == 0 and Ak.size > 0 and float(np.abs(Ak).max()) <= self.rank_tol * lv.a_scale
+        if inert:
+            Ak = np.zeros_like(Ak)
         ws = self.warm_start and self.memory.use(k)
         warm = self.memory.guess(k, mi, carried.gid, total_in, n) if ws and (
             mi or has_carried) else None
         if ws:
-            deferred = warm is not None and (warm.s.any() or warm.w.any())
+            deferred = warm is not None and (warm.s.any() or warm.w.any()) and not inert
         else:
             deferred = (mi > 0 or has_carried) and self.needed_qp.get(k) == (
-                mi, opt.r, carried.count)
+                mi, opt.r, carried.count) and not inert
         fact = None
         if deferred:
             # the previous solve needed this level's inequalities: go straight
@@ -185,21 +224,25 @@ class BasisAlgorithm:
         if feasible:
             feasible, cx = self._feasible(lv, xl, carried)
         violated = None
+        absorbed = None
         qp_point = False
         if not feasible:
-            xl, qp_point = self._inequalities(k, lv, Ak, bk, opt, xl, ws, warm, total_in)
+            xl, qp_point, exact = self._inequalities(k, lv, Ak, bk, opt, xl, ws, warm,
+                                                     total_in)
             if mi:
                 cx = C @ xl
                 viol = (cx > lv.upper + FIX_TOL * lv.up_scale) | (
                     cx < lv.lower - FIX_TOL * lv.lo_scale)
                 if viol.any():
                     violated = viol
+            if self._absorb and exact is not None and has_carried:
+                absorbed = self._absorbed(*exact)
         if qp_point:
             self.needed_qp[k] = (mi, opt.r, carried.count)
         else:
             self.needed_qp.pop(k, None)
-        if violated is not None:
-            null = self._violated_null(lv, Ak, violated, opt)
+        if violated is not None or absorbed is not None:
+            null = self._violated_null(lv, Ak, violated, absorbed, opt)
         elif deferred:
             null, fact = self._null(lv, kind, Ak, opt.r)
         opt.x = xl
@@ -252,8 +295,14 @@ class BasisAlgorithm:
     # 3. the level's inequalities: warm guess, QP, polish ---------------------
     def _inequalities(self, k: int, lv: CheckedLevel, Ak: np.ndarray, bk: np.ndarray,
                       opt: _OptimalSet, xl: np.ndarray, ws: bool, warm: Guess | None,
-                      total_in: int) -> tuple[np.ndarray, bool]:
-        """Solve the level with its inequalities; return its optimum and whether a QP ran."""
+                      total_in: int) -> tuple[np.ndarray, bool, tuple | None]:
+        """Solve the level with its inequalities.
+
+        Returns:
+            ``(x, qp_point, exact)``: the optimum, whether a QP ran, and where the point was
+            verified on an active set, ``(guess, rows, held, y)`` (else ``None``).
+
+        """
         x = opt.x
         carried = opt.carried
         mi = lv.m_in
@@ -269,12 +318,14 @@ class BasisAlgorithm:
             y, guess = self._warm_guess(k, rows, held, held_or_none, opt, xl, warm, scale)
         ok = True
         qp_point = False
+        verified = y is not None
         if y is None:
             qp_point = True
             self._qp_count += 1
             y, ok = self._qp(k, rows, held, held_or_none is not None, opt.r, mi)
             if ws and np.isfinite(y).all():
-                y, guess, ok = self._polish(k, rows, held, held_or_none, y, guess, ok, scale)
+                y, guess, ok, verified = self._polish(k, rows, held, held_or_none, y, guess,
+                                                      ok, scale)
         if ws:
             self.memory.remember(k, guess, carried.gid, total_in, opt.lift(y))
         if not ok:
@@ -283,7 +334,8 @@ class BasisAlgorithm:
             raise SolverFailure(
                 f"level {k}: backend {self.backend.name!r} returned a non-finite solution"
             )
-        return opt.lift(y), qp_point
+        exact = (guess, rows, held, y) if verified and guess is not None else None
+        return opt.lift(y), qp_point, exact
 
     def _warm_guess(self, k: int, rows: LevelRows, held: CarriedRows,
                     held_or_none: CarriedRows | None, opt: _OptimalSet, xl: np.ndarray,
@@ -327,25 +379,53 @@ class BasisAlgorithm:
 
     def _polish(self, k: int, rows: LevelRows, held: CarriedRows,
                 held_or_none: CarriedRows | None, y: np.ndarray, guess: Guess | None,
-                ok: bool, scale: float) -> tuple[np.ndarray, Guess | None, bool]:
-        """Polish: the QP point's active set, solved exactly if it verifies (else rest the slot)."""
+                ok: bool, scale: float) -> tuple[np.ndarray, Guess | None, bool, bool]:
+        """Polish: the QP point's active set, solved exactly if it verifies (else rest the slot).
+
+        Returns:
+            ``(y, guess, ok, verified)``.
+
+        """
         guess = guess_from_point(rows.C @ y if rows.C.shape[0] else None, rows,
                                  held.G @ y if held_or_none is not None else None, held, ACTIVE_TOL)
         yp, guess2, _its = solve_guess(rows, held_or_none, guess, self.rank_tol, scale,
                                        max_iter=POLISH_ITER, ref=y)
         if yp is not None:
-            return yp, guess2, True
+            return yp, guess2, True, True
         self.memory.failed(k)
-        return y, guess, ok
+        return y, guess, ok, False
+
+    @staticmethod
+    def _absorbed(guess: Guess, rows: LevelRows, held: CarriedRows,
+                  y: np.ndarray) -> np.ndarray | None:
+        """Return the carried rows active over the level's whole optimal set (``None``: none).
+
+        Rows held with a positive multiplier (:func:`hqp.solver.active_set.held_multipliers`)
+        are at their bound at every optimum of the level: they become equalities of the
+        basis (and stay carried: a row whose direction the basis's rank decision keeps is
+        still held by its bounds). Left as inequalities alone, they (and the rows they make
+        dependent) bound a feasible set of no width in those directions for the levels
+        below, which the QP backends report infeasible (the thin feasible sets of issue 17).
+        Used on the second pass of :meth:`solve` only.
+        """
+        mu = held_multipliers(rows, held, guess, y)
+        if mu is None:
+            return None
+        absorbed = mu > ABSORB_TOL
+        return absorbed if absorbed.any() else None
 
     # 4. shrink the basis ----------------------------------------------------
-    def _violated_null(self, lv: CheckedLevel, Ak: np.ndarray, violated: np.ndarray,
-                       opt: _OptimalSet) -> np.ndarray:
-        """Return the null space of ``[A Z; C[violated] Z]`` (their values are fixed below)."""
-        Cv = lv.C[violated]
-        E = np.concatenate((Ak, opt.project(Cv))) if lv.m_eq else opt.project(Cv)
-        scale = max(lv.a_scale, float(np.abs(Cv).max()))
-        return PivotedQR(E, self.rank_tol, scale).null()
+    def _violated_null(self, lv: CheckedLevel, Ak: np.ndarray, violated: np.ndarray | None,
+                       absorbed: np.ndarray | None, opt: _OptimalSet) -> np.ndarray:
+        """Return the null space of ``[A Z; C[violated] Z; G[absorbed] Z]`` (fixed below)."""
+        parts = [Ak] if lv.m_eq else []
+        scale = lv.a_scale
+        for M, sel in ((lv.C, violated), (opt.carried.G, absorbed)):
+            if sel is not None:
+                Mv = M[sel]
+                parts.append(opt.project(Mv))
+                scale = max(scale, float(np.abs(Mv).max()))
+        return PivotedQR(np.concatenate(parts), self.rank_tol, scale).null()
 
     # 5. carry the level's satisfied rows ------------------------------------
     @staticmethod

@@ -24,6 +24,7 @@ void ActiveSetSolver::reserve(Index ma, Index mc, Index p, Index nv, Index n, in
   rhs_.reserve(mr);
   res_.reserve(mr);
   kh_.reserve(p);
+  ksc_.reserve(p);
   gv_.reserve(p);
   mu_.reserve(p);
   cv_.reserve(mc);
@@ -45,6 +46,7 @@ void ActiveSetSolver::reserve(Index ma, Index mc, Index p, Index nv, Index n, in
   nn_A_.reserve(nv, p);
   nn_b_.reserve(nv);
   nn_warm_.reserve(p);
+  at_.reserve(p);
   nn_memo_.reserve(p);
 }
 
@@ -145,12 +147,14 @@ bool ActiveSetSolver::solve(const LevelRows& L, const CarriedRows& K, IVecRef s,
     if (nheld) {
       MapM Kh = Kh_.mat(nheld, nv);
       MapV kh = kh_.vec(nheld);
+      MapV ksc = ksc_.vec(nheld);
       for (Index j = 0; j < nheld; ++j) {
         if (K.Z)
           Kh.row(j).noalias() = K.G.row(held(j)) * K.Z->mat();
         else
           Kh.row(j) = K.G.row(held(j));
         kh(j) = wp(j) ? K.gu(held(j)) : K.gl(held(j));
+        ksc(j) = wp(j) ? K.gus(held(j)) : K.gls(held(j));
       }
       kqr_.compute_relative(Kh, rank_tol);
       rk = kqr_.rank();
@@ -294,6 +298,56 @@ bool ActiveSetSolver::solve(const LevelRows& L, const CarriedRows& K, IVecRef s,
     w = w_new;
   }
   return false;
+}
+
+Index ActiveSetSolver::absorbed(const CVecRef& v, IVecRef absorbed) {
+  absorbed.setZero();
+  const Index nheld = held_.size();
+  if (nheld == 0) return 0;
+  // the last guess's rows (solve() returned on it): M v ~ d and the held rows Kh
+  const MapM M = M_.mat();
+  const MapV d = d_.vec();
+  const MapM Kh = Kh_.mat();
+  const MapI wp = wp_.vec(), held = held_.vec();
+  const Index nv = Kh.cols();
+  MapV grad = grad_.vec(nv);
+  if (M.rows()) {
+    MapV res = res_.vec(M.rows());
+    res.noalias() = M * v;
+    res -= d;
+    grad.noalias() = M.transpose() * res;
+  } else {
+    grad.setZero();
+  }
+  const double scale =
+      M.size() ? std::max(1.0, max_abs(M) * std::max(1.0, d.cwiseAbs().maxCoeff())) : 1.0;
+  // a held row dependent on the others is only kept within its bounds (no multiplier):
+  // only the rows at their bound enter the dual system (their positions in at_)
+  const MapV kh = kh_.vec(), ksc = ksc_.vec();
+  MapI at = at_.vec(nheld);
+  Index nat = 0;
+  for (Index j = 0; j < nheld; ++j) {
+    if (std::abs(Kh.row(j).dot(v) - kh(j)) <= kAtBoundTol * ksc(j)) at(nat++) = int(j);
+  }
+  if (nat == 0) return 0;
+  MapM nn_A = nn_A_.mat(nv, nat);
+  for (Index c = 0; c < nat; ++c) {
+    const Index j = at(c);
+    nn_A.col(c) = Kh.row(j).transpose() * (wp(j) ? 1.0 : -1.0);
+  }
+  MapV nn_b = nn_b_.vec(nv);
+  nn_b = -grad;
+  nnls_.solve(nn_A, nn_b, -1.0, int(50 * nat));  // cold, to the end (SciPy's nnls)
+  if (nnls_.residual() > kDualTol * scale * std::max(1.0, std::sqrt(double(nv)))) return -1;
+  const CMapV mu = nnls_.x();
+  Index count = 0;
+  for (Index c = 0; c < nat; ++c) {
+    if (mu(c) > kAbsorbTol * scale) {
+      absorbed(held(at(c))) = 1;
+      ++count;
+    }
+  }
+  return count;
 }
 
 void guess_from_point(const double* cv, const CVecRef& lo, const CVecRef& up,

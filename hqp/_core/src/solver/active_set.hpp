@@ -19,6 +19,13 @@ namespace hqp {
 constexpr double kFeasTol = 1e-9;
 constexpr double kDualTol = 1e-9;
 constexpr int kMaxIter = 6;
+/// A held carried row within this (times its scale) of its bound takes a multiplier in
+/// absorbed(); a dependent held row further inside its band is inactive
+/// (hqp.solver.active_set.AT_BOUND_TOL).
+constexpr double kAtBoundTol = 1e-7;
+/// A held carried row whose multiplier exceeds this (relative to the dual scale of
+/// kDualTol) is active over the level's whole optimal set (hqp.solver.active_set.ABSORB_TOL).
+constexpr double kAbsorbTol = 1e-6;
 
 struct LevelRows {
   CMatRef A;
@@ -46,6 +53,12 @@ class ActiveSetSolver {
   /// minimiser closest to it where the rows leave directions free.
   bool solve(const LevelRows& L, const CarriedRows& K, IVecRef s, IVecRef w, double rank_tol,
              double scale, int max_iter, const double* ref, VecRef v);
+  /// After a solve() that returned true with v: the held carried rows whose multipliers,
+  /// one dual solution by non-negative least squares over all held rows, exceed kAbsorbTol
+  /// (hqp.solver.active_set.held_multipliers). Sets absorbed (p,) to 1 on those rows, 0
+  /// elsewhere; returns how many, or -1 (absorbed zeroed) where the optimality conditions
+  /// do not hold to kDualTol.
+  Index absorbed(const CVecRef& v, IVecRef absorbed);
 
  private:
   bool signed_multipliers(Index nheld, double dtol);
@@ -54,13 +67,13 @@ class ActiveSetSolver {
   // fixed-capacity storage (linalg.hpp's Work), shaped at each guess
   WorkM M_, Kh_, MQ_;
   WorkM zv_;
-  WorkM d_, kh_, vp_, rhs_, zr_, t_, cv_, gv_, grad_, res_, mu_, tmp_;
+  WorkM d_, kh_, ksc_, vp_, rhs_, zr_, t_, cv_, gv_, grad_, res_, mu_, tmp_;
   WorkI held_, wp_, s_new_, w_new_, dep_g_, free_;
   WorkI seen_;  // the guesses tried: (mc + p, max_iter + 1)
   // NNLS workspace
   Nnls nnls_;
   WorkM nn_A_, nn_b_;
-  WorkI nn_warm_, nn_memo_;  // per held row / per carried row: positive at the last call
+  WorkI nn_warm_, nn_memo_, at_;  // per held row / per carried row: positive at the last call
 };
 
 /// The active set of a point: level rows by the side they violate, carried rows held when

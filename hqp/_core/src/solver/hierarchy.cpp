@@ -65,7 +65,7 @@ void Slot::reserve(Index n, Index me, Index mi, Index P, Index total_in) {
   Ck.reserve(mi, n);
   Gk.reserve(P, n);
   Z.reserve(n, n);
-  E.reserve(me + mi, n);
+  E.reserve(me + mi + P, n);
   Msig.reserve(me + mi, n);
   H.reserve(nq, nq);
   Cq.reserve(mi + P, nq);
@@ -80,9 +80,10 @@ void Slot::reserve(Index n, Index me, Index mi, Index P, Index total_in) {
   gur.reserve(P);
   gxl.reserve(P);
   w.reserve(P);
+  absorbed.reserve(P);
   svals.reserve(std::min(me, n));
   fact.reserve(me, n);
-  null_qr.reserve(me + mi, n);
+  null_qr.reserve(me + mi + P, n);
   as.reserve(me, mi, P, n, n, kMaxIter);
   qp.reserve(nq, mi + P);
   sv.reserve(me + mi, n);
@@ -146,6 +147,17 @@ bool Hierarchy::warm_slot(Slot& slot) {
 }
 
 std::string Hierarchy::solve(Index n, Index user_levels) {
+  // a level whose QP fails (a thin feasible set) sends the solve to a second pass that
+  // absorbs the rows active over the optimal sets above (BasisAlgorithm.solve)
+  std::string err = solve_pass(n, user_levels, false);
+  if (err.empty()) return err;
+  const int first = qp_count_;
+  err = solve_pass(n, user_levels, true);
+  qp_count_ += first;
+  return err;
+}
+
+std::string Hierarchy::solve_pass(Index n, Index user_levels, bool absorb) {
   const double rank_tol = settings_.rank_tol;
   const Index NL = Index(levels_.size());
   if (Index(slots_.size()) != NL) slots_.resize(NL);
@@ -213,6 +225,11 @@ std::string Hierarchy::solve(Index n, Index user_levels) {
     else
       Ak = lv.A;
     slot.projected = true;
+    // a level of equality rows alone that the basis no longer reaches has a constant cost
+    // over the feasible set: its point is x, by least squares (BasisAlgorithm._level, inert)
+    const bool inert =
+        mi == 0 && Ak.size() > 0 && Ak.cwiseAbs().maxCoeff() <= rank_tol * lv.a_scale;
+    if (inert) Ak.setZero();
     slot.bk = lv.b;
     slot.bk.noalias() -= lv.A * x_;
     // 1. least squares on the equality rows
@@ -229,10 +246,10 @@ std::string Hierarchy::solve(Index n, Index user_levels) {
     }
     bool deferred;
     if (ws) {
-      deferred = have_warm && (slot.s.any() || w.any());
+      deferred = have_warm && (slot.s.any() || w.any()) && !inert;
     } else {
       deferred = (mi > 0 || carried) && slot.needed_qp && slot.nq_mi == mi && slot.nq_r == r &&
-                 slot.nq_p == p;
+                 slot.nq_p == p && !inert;
     }
     bool y_none = true;
     Null null = Null::kNone;
@@ -273,6 +290,8 @@ std::string Hierarchy::solve(Index n, Index user_levels) {
     }
     bool has_violated = false;
     bool qp_point = false;
+    Index n_absorbed = 0;
+    MapI absorbed = slot.absorbed.vec(p);
     slot.violated.setZero();
     if (!feasible) {
       MapM Ck = slot.Ck.mat(mi, r);
@@ -323,6 +342,7 @@ std::string Hierarchy::solve(Index n, Index user_levels) {
         }
         y_ok = slot.as.solve(rows, held, slot.s, w, rank_tol, scale, kMaxIter, ref.data(), y);
       }
+      bool verified = y_ok;  // y solved on an active set that verified (slot.as holds it)
       bool ok = true;
       if (!y_ok) {
         // 3b. QP in the reduced coordinates (and the level's slacks): G Z formed here only
@@ -375,6 +395,7 @@ std::string Hierarchy::solve(Index n, Index user_levels) {
                             vp)) {
             y = vp;
             ok = true;
+            verified = true;
           } else {
             slot.warm_skip = kWarmSkip;
             slot.has_guess = false;
@@ -412,6 +433,10 @@ std::string Hierarchy::solve(Index n, Index user_levels) {
           has_violated = has_violated || v;
         }
       }
+      // carried rows held with a positive multiplier bound the level's whole optimal set:
+      // equalities of the basis below (hqp.solver.basis.BasisAlgorithm._absorbed)
+      if (absorb && verified && carried)
+        n_absorbed = std::max<Index>(0, slot.as.absorbed(y, absorbed));
     }
     if (qp_point) {
       slot.needed_qp = true;
@@ -421,10 +446,11 @@ std::string Hierarchy::solve(Index n, Index user_levels) {
     } else {
       slot.needed_qp = false;
     }
-    // 4. shrink the basis: equality rows and violated rows become equalities
-    if (has_violated) {
+    // 4. shrink the basis: equality rows, violated rows and absorbed carried rows become
+    // equalities
+    if (has_violated || n_absorbed) {
       const Index nv = slot.violated.sum();
-      MapM E = slot.E.mat(me + nv, r);
+      MapM E = slot.E.mat(me + nv + n_absorbed, r);
       if (me) E.topRows(me) = Ak;
       double cmax = 0.0;
       for (Index i = 0, j = me; i < mi; ++i) {
@@ -434,6 +460,15 @@ std::string Hierarchy::solve(Index n, Index user_levels) {
         else
           E.row(j) = lv.C.row(i);
         cmax = std::max(cmax, lv.C.row(i).cwiseAbs().maxCoeff());
+        ++j;
+      }
+      for (Index i = 0, j = me + nv; i < p && n_absorbed; ++i) {
+        if (!absorbed(i)) continue;
+        if (Z)
+          E.row(j).noalias() = G.row(i) * Zm;
+        else
+          E.row(j) = G.row(i);
+        cmax = std::max(cmax, G.row(i).cwiseAbs().maxCoeff());
         ++j;
       }
       slot.null_qr.compute(E, rank_tol, std::max(lv.a_scale, cmax));

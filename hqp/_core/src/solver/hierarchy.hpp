@@ -75,7 +75,7 @@ struct Slot {
   // size r, the carried rows p, the QP's r + mi)
   WorkM Ak, Ck, Gk, Z, E, H, Cq, Msig;
   WorkM y, gx, glr, gur, ref, g, qlo, qup, v, gxl, svals;
-  WorkI w;
+  WorkI w, absorbed;
   PivotedQR fact, null_qr;
   bool has_fact = false;
   bool projected = false;  // Ak holds A Zb (for the report's sigma)
@@ -108,6 +108,8 @@ class Hierarchy {
   const Settings& settings() const { return settings_; }
 
  private:
+  /// One pass of solve(): carried rows held with positive multipliers absorbed if `absorb`.
+  std::string solve_pass(Index n, Index user_levels, bool absorb);
   bool warm_slot(Slot& slot);
   /// Whether the level shapes differ from the last solve's (then recorded).
   bool shapes_changed(Index n);
