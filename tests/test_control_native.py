@@ -290,7 +290,12 @@ def test_operational_kernels_run_natively(name):
     assert nat.native.unsupported is None and nat.native.steps >= 9
 
 
-@pytest.mark.parametrize("name", robots.NAMES)
+@pytest.mark.parametrize("name", [
+    pytest.param(n, marks=pytest.mark.xfail(strict=True, reason=(
+        "open defect (issue 17): talos, t = 8 ms, constraint level in conflict: native and "
+        "Python steps 4.1e-3 N m apart (2e-5 of the largest torque, the test's bound 1e-5), "
+        "from levels 1e-10 apart; session 12's fresh environment, the same on main before "
+        "that session's change"))) if n == "talos" else n for n in robots.NAMES])
 def test_collision_kernels_run_natively(name):
     """Obstacle avoidance (a moving sphere near a hand) and self-collision pairs on the native
     step: the same levels (1e-10), command, report, margins and pair names as the Python step.
