@@ -46,14 +46,15 @@ went past their limits in MuJoCo."""
 JOINT_VELOCITY_SCALE = 0.5
 """Fraction of the model's joint velocity limits used by the viable bounds."""
 
-BACKEND = "daqp"
-"""QP backend of the HQP controller in the scenarios. DAQP since the solver's robustness
-fixes (0 safe-mode steps on hand-reach); quadprog's basis solves were found suboptimal on
-some real problems (tests/test_solver_real.py). Not yet the native step (session 10,
-``hqp compare --all`` with ``"native"``): hand-reach and obstacle gave the same figures
-25-40x faster, box-grab the same once the native solver's fallbacks include quadprog, but
-screwgun had 2 safe-mode steps where every solver failed on a thin feasible set, and the
-hand ended 32 cm from its goal instead of 0.003 cm (issue 17)."""
+BACKEND = "native"
+"""QP backend of the HQP controller in the scenarios: the native step (the default
+controller's), since session 12's thin-set pass (a failed level QP sends the solve to a
+second pass absorbing the carried rows active over the optimal sets above). Measured with
+``hqp compare --all --json --controllers hqp`` (session 12): 0 safe-mode steps in every
+scenario, screwgun's hand 0.0030 cm from its goal (session 10 on the native step: 2
+safe-mode steps and 32 cm; on DAQP through the Python step: 0.003 cm). Before: DAQP through
+the Python step (quadprog's basis solves were found suboptimal on some real problems,
+tests/test_solver_real.py)."""
 
 
 @dataclass
