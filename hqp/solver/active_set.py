@@ -318,12 +318,17 @@ def _wrong_multipliers(M: np.ndarray, d: np.ndarray, v: np.ndarray, K: np.ndarra
     mu = np.zeros(K.shape[0])
     mu[piv[:rk]] = _dtrtrs(R11, -(Q1.T @ grad), lower=0)[0]
     mug = mu[me:]
-    dtol = DUAL_TOL * max(1.0, float(np.abs(M).max()) * max(1.0, float(
-        np.abs(d).max()))) if M.size else DUAL_TOL
+    dtol = DUAL_TOL * _dual_scale(M, d)
     bad_mu = np.where(wp, mug < -dtol, mug > dtol)
     if bad_mu.any() and not (rk < K.shape[0] and _signed_multipliers(K, me, wp, grad, dtol)):
         return held[bad_mu]
     return None
+
+
+def _dual_scale(M: np.ndarray, d: np.ndarray) -> float:
+    """Return ``max(1, max|M| max(1, max|d|))``, the scale :data:`DUAL_TOL` is relative to."""
+    return max(1.0, float(np.abs(M).max()) * max(1.0, float(np.abs(d).max()))) if M.size \
+        else 1.0
 
 
 def _check_carried_rows(gv: np.ndarray, w: np.ndarray, gl_in: np.ndarray, gu_in: np.ndarray,
@@ -388,15 +393,12 @@ def _signed_multipliers(
     rows held at their upper bound and ``<= 0`` at their lower bound. Found by
     non-negative least squares on the sign-adjusted rows.
     """
-    tol = dtol * max(1.0, np.sqrt(grad.size))
-    if K.shape[0] == 0:
-        return bool(np.linalg.norm(grad) <= tol)
     sign = np.where(wp, 1.0, -1.0)
     cols = [K[me:].T * sign]
     if me:
         cols = [K[:me].T, -K[:me].T] + cols
     _mu, res = nnls(np.concatenate(cols, axis=1), -grad, maxiter=50 * K.shape[0])
-    return bool(res <= tol)
+    return bool(res <= dtol * max(1.0, np.sqrt(grad.size)))
 
 
 AT_BOUND_TOL = 1e-7
@@ -447,8 +449,7 @@ def held_multipliers(level: LevelRows, carried: CarriedRows, guess: Guess,
     M, d = _stack(A, b, C, level.lo, level.up, guess.s) if C.shape[0] and guess.s.any() \
         else (A, b)
     grad = M.T @ (M @ v - d)
-    scale = max(1.0, float(np.abs(M).max()) * max(1.0, float(np.abs(d).max()))) if M.size \
-        else 1.0
+    scale = _dual_scale(M, d)
     sign = np.where(w[held] > 0, 1.0, -1.0)
     mu_h, res = nnls(carried.G[held].T * sign, -grad, maxiter=50 * held.size)
     if res > DUAL_TOL * scale * max(1.0, np.sqrt(grad.size)):

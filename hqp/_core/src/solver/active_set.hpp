@@ -54,7 +54,8 @@ class ActiveSetSolver {
   bool solve(const LevelRows& L, const CarriedRows& K, IVecRef s, IVecRef w, double rank_tol,
              double scale, int max_iter, const double* ref, VecRef v);
   /// After a solve() that returned true with v: the held carried rows whose multipliers,
-  /// one dual solution by non-negative least squares over all held rows, exceed kAbsorbTol
+  /// one dual solution by non-negative least squares over the held rows at their bound
+  /// (kAtBoundTol), exceed kAbsorbTol
   /// (hqp.solver.active_set.held_multipliers). Sets absorbed (p,) to 1 on those rows, 0
   /// elsewhere; returns how many, or -1 (absorbed zeroed) where the optimality conditions
   /// do not hold to kDualTol.
@@ -73,7 +74,8 @@ class ActiveSetSolver {
   // NNLS workspace
   Nnls nnls_;
   WorkM nn_A_, nn_b_;
-  WorkI nn_warm_, nn_memo_, at_;  // per held row / per carried row: positive at the last call
+  WorkI nn_warm_, nn_memo_;  // per held row / per carried row: positive at the last call
+  WorkI at_;                 // absorbed(): positions of the held rows at their bound
 };
 
 /// The active set of a point: level rows by the side they violate, carried rows held when
