@@ -220,9 +220,3 @@ def test_the_torque_rate_level_spreads_a_torque_step():
     assert "torque_rate" in runs[True][1].report and "torque_rate" not in runs[False][1].report
     assert runs[True][1].report["torque_rate"].status is Feasibility.SATISFIED
     np.testing.assert_allclose(limited[-1], free[-1], atol=1e-6 * np.abs(free[-1]).max())
-
-
-def test_the_native_step_refuses_the_torque_rate_level():
-    c, m, q = make()
-    with pytest.raises(InvalidInput, match="torque-rate"):
-        WholeBodyController(m, [], c.stack, native=True, max_torque_rate=1000.0)

@@ -11,8 +11,9 @@ import numpy as np
 import pytest
 
 from hqp import robots
-from hqp.control.native import NativeStepMirror
+from hqp.control.native import RATE_TASK, NativeStepMirror
 from hqp.control.presets import standing_controller
+from hqp.control.servo import MAX_TORQUE_RATE
 from hqp.model import RobotState
 from hqp.solver import HierarchicalSolver
 from hqp.tasks.dynamics import joint_torques
@@ -49,7 +50,7 @@ def _standing(name):
 
 def _check_levels(mirror, built, n):
     levels = mirror.step_core.levels()
-    assert [k for k, *_ in levels] == list(built.level_index)
+    assert [mirror.stack_level(k) for k, *_ in levels] == list(built.level_index)
     for (_k, A, b, C, lo, up), lv in zip(levels, built.levels):
         _close(A, np.zeros((0, n)) if lv.A is None else lv.A, f"{lv.name} A")
         _close(b, np.zeros(0) if lv.b is None else lv.b, f"{lv.name} b")
@@ -57,6 +58,29 @@ def _check_levels(mirror, built, n):
         if lv.C is not None:
             _close(lo, lv.lower, f"{lv.name} lower")
             _close(up, lv.upper, f"{lv.name} upper")
+
+
+def _agitated(robot, model, seed, q_scale, v_scale, steps=6):
+    """Random states around standing, one per 1 ms step, the model updated at each:
+    ``(q, v, t)``."""
+    rng = np.random.default_rng(seed)
+    for i in range(steps):
+        q = robot.q_standing.copy()
+        q[7:] += rng.normal(scale=q_scale, size=model.na)
+        v = rng.normal(scale=v_scale, size=model.nv)
+        model.update(q, v)
+        yield q, v, 0.001 * (i + 1)
+
+
+def _check_costs(built, x):
+    """Level costs of ``x`` within the contract's 1e-6 of the Python solvers' (or their
+    spread); returns them."""
+    refs = np.array([HierarchicalSolver(b).solve(built.levels).costs
+                     for b in ("native", "daqp", "quadprog")])
+    costs = np.array([lv_cost(lv, x) for lv in built.levels])
+    best, spread = refs.min(axis=0), np.ptp(refs, axis=0)
+    assert np.all(costs - best <= 1e-6 * np.maximum(1.0, best) + spread), (costs, refs)
+    return costs
 
 
 @pytest.mark.parametrize("name", robots.NAMES)
@@ -99,22 +123,59 @@ def test_native_step_meets_the_contract_at_agitated_states(name):
     robot, ctrl = _standing(name)
     model, layout, stack = ctrl.model, ctrl.layout, ctrl.stack
     mirror = NativeStepMirror(robot, ctrl)
-    rng = np.random.default_rng(5)
-    for i in range(6):
-        q = robot.q_standing.copy()
-        q[7:] += rng.normal(scale=0.02, size=model.na)
-        v = rng.normal(scale=0.2, size=model.nv)
-        t = 0.001 * (i + 1)
-        model.update(q, v)
+    for q, v, t in _agitated(robot, model, 5, 0.02, 0.2):
         built = stack.build(model, layout, ctrl.dt, t)
         x, tau = mirror.step(q, v, t)
         _check_levels(mirror, built, layout.n)
-        refs = np.array([HierarchicalSolver(b).solve(built.levels).costs
-                         for b in ("native", "daqp", "quadprog")])
-        costs = np.array([lv_cost(lv, x) for lv in built.levels])
-        best, spread = refs.min(axis=0), np.ptp(refs, axis=0)
-        assert np.all(costs - best <= 1e-6 * np.maximum(1.0, best) + spread), (costs, refs)
+        _check_costs(built, x)
         _close(tau, joint_torques(model, layout, x), "tau", 1e-10)
+
+
+@pytest.mark.parametrize("name", ["g1", "talos"])
+def test_native_step_mirrors_the_torque_rate_level(name):
+    """The servo's torque-rate level (``max_torque_rate``) in the native step: its rows at a
+    level of its own after the contact limits, equal to ``_with_rate_level``'s to 1e-10 with
+    the same previous torques; at agitated states (the level binding) the level costs of x
+    within the contract's 1e-6 of the Python solvers' (or their spread), the torques within
+    ``tau_prev +- rate dt`` whenever the level is met."""
+    robot = robots.load(name)
+    ctrl = standing_controller(robot, backend="daqp", max_torque_rate=MAX_TORQUE_RATE)
+    ctrl.step(RobotState(robot.q_standing.copy(), np.zeros(ctrl.model.nv)), 0.0)
+    model, layout, stack = ctrl.model, ctrl.layout, ctrl.stack
+    mirror = NativeStepMirror(robot, ctrl)
+    delta = ctrl.max_torque_rate * ctrl.dt
+    tau_prev = ctrl._rate_ref.copy()
+    binding = 0
+    for q, v, t in _agitated(robot, model, 6, 0.01, 0.05):
+        ctrl._rate_ref = tau_prev
+        built = ctrl._with_rate_level(stack.build(model, layout, ctrl.dt, t))
+        assert RATE_TASK in [lv.name for lv in built.levels]
+        mirror.set_torque_rate(tau_prev, delta)
+        x, tau = mirror.step(q, v, t)
+        _check_levels(mirror, built, layout.n)
+        costs = _check_costs(built, x)
+        _close(tau, joint_torques(model, layout, x), "tau", 1e-10)
+        k_rate = [lv.name for lv in built.levels].index(RATE_TASK)
+        change = np.abs(tau - tau_prev) / delta
+        if costs[k_rate] <= 1e-12:  # the level met: every torque within its band
+            assert change.max() <= 1.0 + 1e-6
+        binding += change.max() > 1.0 - 1e-6
+        tau_prev = tau.copy()
+    assert binding >= 3  # the states ask for faster torque changes than the level allows
+    # the mirror reports the level under its name, at the stack index the Python step gives
+    statuses, _costs, _built = mirror.report(ctrl.feasibility)
+    rate = [s for s in statuses if s.name == RATE_TASK]
+    assert len(rate) == 1 and rate[0].level == max(ctrl._rate_after, 0)
+
+
+def test_a_controller_with_the_torque_rate_level_runs_native():
+    robot = robots.load("g1")
+    ctrl = standing_controller(robot, max_torque_rate=MAX_TORQUE_RATE)
+    state = RobotState(robot.q_standing.copy(), np.zeros(ctrl.model.nv))
+    for i in range(4):
+        cmd = ctrl.step(state, 0.001 * i)
+    assert ctrl.native is not None and ctrl.native.steps >= 2, ctrl.native.unsupported
+    assert cmd.report[RATE_TASK].status.value == "satisfied"
 
 
 def test_mirror_refuses_what_it_cannot_run():

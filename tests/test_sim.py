@@ -296,11 +296,6 @@ def test_adding_removing_a_task_and_a_contact_keeps_torques_continuous():
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason=(
-    "open defect (issue 17): 11.4 N m in one step against the stated 5 N m in session 12's "
-    "fresh environment (daqp 0.11.0, mujoco 4.0.1, numpy 2.3.5, scipy 1.17.1; the same on "
-    "main before that session's change; with the daqp 0.10.3 wheel it passes): the figure "
-    "depends on which point of a conflicting level's optimal set the QP returns"))
 def test_torques_stay_continuous_while_the_balance_level_is_in_conflict():
     # The shift asks 5.5 cm in 0.4 s (min-jerk peak 2.0 m/s^2, a centre of pressure 19 cm
     # beside the CoM where the support polygon reaches 12 cm): the balance level is in

@@ -49,20 +49,12 @@ def _check(log, model, conflicting):
     assert float(jumps.max()) < JUMP_NM, (float(jumps.max()), float(log.t[1:][jumps.argmax()]))
 
 
-_OPEN_COM = (
-    "open defect (issue 17): on {robot} the joint-limit level enters a conflict with the contact "
-    "limits while the arms run at their acceleration bounds for the CoM, and the torque-rate "
-    "level below it gives way: {figures} (0.8 s run of this test)"
-)
-
-
 @pytest.mark.slow
 @pytest.mark.parametrize("name", [
     "paper-humanoid",
-    pytest.param("g1", marks=pytest.mark.xfail(strict=True, reason=_OPEN_COM.format(
-        robot="g1", figures="56 N m in one step, no safe-mode step, no joint past a limit"))),
-    # talos fails the same way (192 N m in one step, 3 safe-mode steps, a joint 0.0099 rad past
-    # its limit; 39 s of CPU for the 0.8 s run): not run, to keep the suite's cost down
+    "g1",
+    # talos passes the same way (4.0 N m per step, no safe-mode step, no joint past a limit;
+    # 65 s of CPU for the 0.8 s run on the Python step): not run, to keep the suite's cost down
 ])
 def test_a_centre_of_mass_move_faster_than_the_support_allows(name):
     """The CoM goal 5 cm forward in 0.4 s (a min-jerk peak of 1.8 m/s^2, more than the soles'

@@ -57,6 +57,9 @@ from hqp.tasks.position import PositionTask
 from hqp.tasks.posture import PostureTask
 from hqp.tasks.torque_limits import TorqueLimits
 
+RATE_TASK = "torque_rate"
+"""Name of the servo's torque-rate level's rows in the report (``WholeBodyController``)."""
+
 
 class NotSupported(HQPError):
     """A task or stack state the native step does not run (yet): use the Python step."""
@@ -100,8 +103,17 @@ class NativeStepMirror:
         robot_core = core.RobotCore(str(robot.urdf_path), ROOT_JOINT, frames)
         for slot in layout.contacts:
             slots.append((robot_core.frame_id(slot.frame), slot.kind.value, slot.start))
+        # the servo's torque-rate level (max_torque_rate): a level of its own after the stack
+        # level _rate_after, as WholeBodyController._with_rate_level inserts it
+        rate = getattr(controller, "max_torque_rate", None)
+        self._rate_at: int | None = None  # its native level
+        self._rate_index = 0  # the stack level index it reports (as the Python step)
+        if rate is not None:
+            after = int(controller._rate_after)
+            self._rate_at, self._rate_index = after + 1, max(after, 0)
         self.step_core = core.NativeStep(str(robot.urdf_path), ROOT_JOINT, frames,
-                                         model.nv_base, slots, stack.n_levels, rank_tol,
+                                         model.nv_base, slots,
+                                         stack.n_levels + (rate is not None), rank_tol,
                                          warm_start, True)
         self._frame = robot_core.frame_id
         self._goals: list[tuple[int, Any, str]] = []  # (handle, task, goal kind)
@@ -115,13 +127,44 @@ class NativeStepMirror:
         self._entries: list[tuple[Any, ...]] | None = None  # row placement, after a step
         self._report_order: list[tuple[int, tuple[Any, ...]]] | None = None
         for task in stack.tasks:
-            level = stack.level_of_task(task.name)
+            level = self._native_level(stack.level_of_task(task.name))
             self._add(core, task, level, self._contacts)
             self._names.append(task.name)
+        self._rate_handle: int | None = None
+        if self._rate_at is not None:
+            self._rate_handle = self.step_core.add_torque_rate(self._rate_at, 1.0)
+            self._names.append(RATE_TASK)
         self._model_errors = [t for t in stack.tasks if isinstance(t, (Contact, JointLimits))]
         self._pushed: dict[str, tuple[bool, Any]] = {
             t.name: (t.active, None if t.reference is None else t.reference.homogeneous.copy())
             for t in stack.tasks if isinstance(t, Contact)}
+
+    def _native_level(self, level: int) -> int:
+        """Return the native level of stack level ``level`` (after the torque-rate level)."""
+        return level + (self._rate_at is not None and level >= self._rate_at)
+
+    def stack_level(self, level: int) -> int:
+        """Return the stack level index a native level reports (the inverse of the above)."""
+        if self._rate_at is None or level < self._rate_at:
+            return level
+        return self._rate_index if level == self._rate_at else level - 1
+
+    def set_torque_rate(self, tau_ref: np.ndarray | None, delta: np.ndarray) -> None:
+        """Bound the next step's torques to ``tau_ref +- delta`` (the torque-rate level).
+
+        ``tau_ref=None`` (the first step): unbounded.
+
+        Raises:
+            NotSupported: The mirror was built without the level.
+
+        """
+        if self._rate_handle is None:
+            raise NotSupported("the mirror was built without the torque-rate level")
+        if tau_ref is None:
+            inf = np.full(self.model.na, np.inf)
+            self.step_core.set_torque_rate(self._rate_handle, -inf, inf)
+        else:
+            self.step_core.set_torque_rate(self._rate_handle, tau_ref - delta, tau_ref + delta)
 
     def _add(self, core: Any, task: Any, level: int, contacts: dict[str, int]) -> None:
         s, w, model = self.step_core, task.weight, self.model
@@ -392,7 +435,8 @@ class NativeStepMirror:
                 built, solution = self.built()
                 return (diagnostics.hqp_statuses(built, solution),
                         tuple(float(c) for c in costs), built)
-            out.append(TaskStatus(self._names[handle], level, status, residual, None, sigma))
+            out.append(TaskStatus(self._names[handle], self.stack_level(level), status,
+                                  residual, None, sigma))
         return tuple(out), tuple(float(c) for c in costs), None
 
     def _placements(self) -> list[tuple[Any, ...]]:
@@ -414,13 +458,14 @@ class NativeStepMirror:
         names = self.stack.level_names
         for k, (level, A, b, C, lo, up) in enumerate(raw):
             cost, sigma, state = core.result(k)
+            name = RATE_TASK if level == self._rate_at else names[self.stack_level(level)]
             levels.append(Level(A=A if A.shape[0] else None, b=b if A.shape[0] else None,
                                 C=C if C.shape[0] else None, lower=lo if C.shape[0] else None,
-                                upper=up if C.shape[0] else None, name=names[level]))
-            reports.append(LevelReport(names[level], cost, True, np.flatnonzero(state > 0),
+                                upper=up if C.shape[0] else None, name=name))
+            reports.append(LevelReport(name, cost, True, np.flatnonzero(state > 0),
                                        np.flatnonzero(state > 1), sigma, np.zeros(0),
                                        np.zeros(0)))
-            index.append(level)
+            index.append(self.stack_level(level))
         spans, rows = [], {}
         for name, (_kind, level, built, eq0, neq, in0, nin, sqrt_w) in zip(
                 self._names, self._placements()):
@@ -433,9 +478,12 @@ class NativeStepMirror:
                 C=C[in0:in0 + nin] / sqrt_w if nin else None,
                 lower=lo[in0:in0 + nin] / sqrt_w if nin else None,
                 upper=up[in0:in0 + nin] / sqrt_w if nin else None)
-            task = self.stack.task(name)
-            spans.append(TaskSpan(name, level, built, slice(eq0, eq0 + neq),
-                                  slice(in0, in0 + nin), task.weight))
+            if name == RATE_TASK and level == self._rate_at:  # the servo's own level
+                spans.append(TaskSpan(name, self._rate_index, built, slice(0, 0),
+                                      slice(in0, in0 + nin), 1.0, 1.0, True))
+                continue
+            spans.append(TaskSpan(name, self.stack_level(level), built, slice(eq0, eq0 + neq),
+                                  slice(in0, in0 + nin), self.stack.task(name).weight))
         spans.sort(key=lambda s: s.built_level)
         solution = Solution(np.array(core.x), tuple(reports), backend="native",
                             algorithm="basis", qp_count=core.qp_count)
@@ -501,9 +549,16 @@ class NativeEngine:
         self._signature: tuple[Any, ...] | None = None
         self.steps = 0
 
-    def signature(self, stack: Stack) -> tuple[Any, ...]:
-        """Return the stack's structure and the parameters its kernels copy."""
-        return tuple((stack.level_of_task(t.name), _parameters(t)) for t in stack.tasks)
+    def signature(self, stack: Stack, controller: Any = None) -> tuple[Any, ...]:
+        """Return the stack's structure and the parameters its kernels copy.
+
+        With ``controller``: also whether it has the torque-rate level, and where.
+        """
+        rate = None
+        if controller is not None and getattr(controller, "max_torque_rate", None) is not None:
+            rate = int(controller._rate_after)
+        return tuple((stack.level_of_task(t.name), _parameters(t)) for t in stack.tasks) + (
+            ("torque_rate", rate),)
 
     def ready(self, controller: Any, t: float) -> NativeStepMirror | None:
         """Return the mirror to run this step, or ``None`` when the Python step must run it."""
@@ -511,7 +566,7 @@ class NativeEngine:
         if not stack.steady(t) or controller.final_metric is not None \
                 or controller.final_target is not None:
             return None
-        signature = self.signature(stack)
+        signature = self.signature(stack, controller)
         if signature != self._signature:
             self._signature = signature
             self.mirror, self.unsupported = None, None

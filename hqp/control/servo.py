@@ -12,13 +12,15 @@ One control step of :class:`WholeBodyController`:
 5. a :class:`~hqp.control.command.FeasibilityReport` (:mod:`hqp.control.diagnostics`).
 
 The torque-rate level (HQP only, opt-in: ``max_torque_rate``, e.g. :data:`MAX_TORQUE_RATE`):
-between the constraint levels and the tasks the servo adds
-one level of its own, ``|tau - tau_prev| <= max_torque_rate * dt`` over the actuated joints
-(``tau_prev``: the hierarchy's torques of the previous step), reported as the task
-``torque_rate``. A level below in conflict (a centre-of-mass goal faster than the support
-allows, an unreachable hand) then cannot turn the switches of its active set (acceleration
-bounds entering and leaving) into torque steps: every such switch is spread over several steps,
-and the constraint levels above (physics, contact, torque and joint limits) still win over it.
+after the physics and the contact and torque limits the servo adds one level of its own,
+``|tau - tau_prev| <= max_torque_rate * dt`` over the actuated joints (``tau_prev``: the
+hierarchy's torques of the previous step), reported as the task ``torque_rate``: an actuator
+limit, above the joint limits, the collision distances and the tasks. A level below in
+conflict (a joint-limit level that the contact limits do not let brake in time, a
+centre-of-mass goal faster than the support allows, an unreachable hand) then cannot turn the
+switches of its active set (acceleration bounds entering and leaving) into torque steps: every
+such switch is spread over several steps; the physics and the contact and torque limits above
+still win over it.
 
 The controller never returns NaN torques: if the resolver fails, it sends a defined safe
 command (gravity and contact-force compensation with joint damping on the current contacts)
@@ -37,7 +39,7 @@ import numpy as np
 
 from hqp.control.command import Command, FeasibilityReport
 from hqp.control.diagnostics import MODES, Diagnostics
-from hqp.control.native import NativeEngine, NativeStepMirror
+from hqp.control.native import RATE_TASK, NativeEngine, NativeStepMirror
 from hqp.control.resolver import HQPResolver, Resolver
 from hqp.errors import InvalidInput
 from hqp.model.layout import Layout
@@ -61,12 +63,11 @@ MAX_TORQUE_RATE = 4000.0
 step, under the 5 N m per step the closed-loop conflict tests hold (a torque an actuator with
 a few ms of torque rise time follows)."""
 
-CONSTRAINT_CATEGORIES = (Category.PHYSICS, Category.CONTACT_LIMITS, Category.JOINT_LIMITS,
-                         Category.COLLISION)
-"""The constraint sub-levels the torque-rate level is placed after."""
+RATE_AFTER = (Category.PHYSICS, Category.CONTACT_LIMITS)
+"""The constraint sub-levels the torque-rate level is placed after: the actuator's torque-rate
+bound sits with its torque limits, above the joint limits and the collision distances (a
+joint-limit level in conflict below it cannot turn into a torque step; docs/control.md)."""
 
-RATE_TASK = "torque_rate"
-"""Name of the torque-rate level's rows in the report."""
 
 
 class Controller(abc.ABC):
@@ -200,9 +201,8 @@ class WholeBodyController(Controller):
             means the Python step on that backend.
         max_torque_rate: Bound on the rate of the hierarchy's torques [N m/s], a scalar or
             ``(na,)`` (module docstring; HQP resolvers only; :data:`MAX_TORQUE_RATE` is the
-            measured choice); ``None`` (default): no torque-rate level. The native step does
-            not mirror the level yet: with it, ``native=None`` means the Python step and
-            ``native=True`` is refused.
+            measured choice); ``None`` (default): no torque-rate level. The native step
+            mirrors it (a torque-rate kernel at a level of its own).
 
     Raises:
         InvalidInput: Bad period, tolerance or diagnostics mode; a contact frame not in the
@@ -250,11 +250,8 @@ class WholeBodyController(Controller):
             robot_model.frame_id(frame, f"WholeBodyController: contact {name!r}")
         self.layout = Layout.build(robot_model.nv, self.stack.layout_contacts())
         self.dt = float(dt)
-        if native and max_torque_rate is not None:
-            raise InvalidInput("WholeBodyController: the native step does not mirror the "
-                               "torque-rate level (max_torque_rate) yet; use native=None")
         if native is None:
-            native = (resolver is None and algorithm == "basis" and max_torque_rate is None
+            native = (resolver is None and algorithm == "basis"
                       and backend in (None, "native") and robot_model.source is not None)
         if native and robot_model.source is None:
             raise InvalidInput("WholeBodyController: native=True needs a model built by "
@@ -276,7 +273,7 @@ class WholeBodyController(Controller):
                                    f"{max_torque_rate}")
             self.max_torque_rate = rate.copy()
         self._rate_after = max((k for k, c in enumerate(self.stack.level_categories)
-                                if c in CONSTRAINT_CATEGORIES), default=-1)
+                                if c in RATE_AFTER), default=-1)
         self._rate_ref: np.ndarray | None = None  # the hierarchy's torques of the last step
         self.last_t = 0.0
         self.last_x: np.ndarray | None = None
@@ -478,6 +475,9 @@ class WholeBodyController(Controller):
         # steady: advance changes nothing but tells contact-aware tasks the active contacts
         self.stack.advance(self.model, self.layout, self.dt, t, self.last_x)
         clock = time.perf_counter
+        if mirror._rate_handle is not None:
+            assert self.max_torque_rate is not None
+            mirror.set_torque_rate(self._rate_ref, self.max_torque_rate * self.dt)
         try:
             x, tau = mirror.step(q, v, t)
         except RuntimeError as exc:  # the Python step solves it on the fallback backend

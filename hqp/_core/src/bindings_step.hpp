@@ -160,6 +160,9 @@ inline void bind_step(nb::module_& m) {
           nb::arg("handle"),
           "(e, de/dt) of a tracking, orientation, gaze or pose kernel at the last step (e = current - goal).")
       .def("set_braking", &NativeStep::set_braking, nb::arg("handle"), nb::arg("braking"))
+      .def("add_torque_rate", &NativeStep::add_torque_rate, nb::arg("level"), nb::arg("weight"))
+      .def("set_torque_rate", &NativeStep::set_torque_rate, nb::arg("handle"), nb::arg("tau_lo"),
+           nb::arg("tau_hi"))
       .def(
           "step",
           // Eigen::Ref: a contiguous float64 array is read in place (no copy per step)

@@ -113,6 +113,26 @@ int NativeStep::add_cop(int level, double weight, const CoPKernel& kernel) {
   return add(Kind::kCoP, level, weight, int(cop_.size()) - 1, kernel.rows(), 0);
 }
 
+int NativeStep::add_torque_rate(int level, double weight) {
+  const double inf = std::numeric_limits<double>::infinity();
+  rate_.emplace_back(Eigen::VectorXd::Constant(na_, -inf), Eigen::VectorXd::Constant(na_, inf));
+  return add(Kind::kTorqueRate, level, weight, int(rate_.size()) - 1, 0, na_);
+}
+
+void NativeStep::set_torque_rate(int handle, const Eigen::Ref<const Eigen::VectorXd>& tau_lo,
+                                 const Eigen::Ref<const Eigen::VectorXd>& tau_hi) {
+  const Entry& e = checked(handle, Kind::kTorqueRate, "torque-rate");
+  if (tau_lo.size() != na_ || tau_hi.size() != na_)
+    throw std::invalid_argument("torque rate: one bound per actuated joint");
+  for (Index i = 0; i < na_; ++i) {
+    if (std::isnan(tau_lo(i)) || std::isnan(tau_hi(i)) || tau_lo(i) > tau_hi(i))
+      throw std::invalid_argument("torque rate: bounds must be ordered and not NaN");
+  }
+  auto& bounds = rate_[std::size_t(e.index)];  // in place: no allocation per step
+  bounds.first = tau_lo;
+  bounds.second = tau_hi;
+}
+
 const NativeStep::Entry& NativeStep::checked(int handle, Kind kind, const char* what) const {
   if (handle < 0 || handle >= int(entries_.size()) || entries_[std::size_t(handle)].kind != kind)
     throw std::invalid_argument(std::string("not a ") + what + " handle");
@@ -283,6 +303,13 @@ std::string NativeStep::step(const Eigen::Ref<const Eigen::VectorXd>& q,
         C = G_.bottomRows(na_);
         lo = -tau - robot.h().tail(na_);
         up = tau - robot.h().tail(na_);
+        break;
+      }
+      case Kind::kTorqueRate: {
+        const auto& bounds = rate_[std::size_t(e.index)];
+        C = G_.bottomRows(na_);
+        lo = bounds.first - robot.h().tail(na_);
+        up = bounds.second - robot.h().tail(na_);
         break;
       }
       case Kind::kContact:

@@ -33,7 +33,7 @@ class NativeStep {
   using Index = Eigen::Index;
   enum class Kind { kDynamics, kTorqueLimits, kContact, kContactLimits, kJointLimits,
                     kTracking, kOrientation, kConstant, kGaze, kInternalForces, kDistance,
-                    kPose, kEffort, kCoP };
+                    kPose, kEffort, kCoP, kTorqueRate };
 
   NativeStep(std::unique_ptr<RobotCore> robot, Index nv_base, LayoutC layout, int n_levels,
              const Settings& settings);
@@ -58,6 +58,9 @@ class NativeStep {
   /// Minimum effort: rows diag(w) S [M | -J^T] x = -diag(w) S h (the torques, scaled by w).
   int add_effort(int level, double weight, const Eigen::VectorXd& scale);
   int add_cop(int level, double weight, const CoPKernel& kernel);
+  /// The servo's torque-rate rows: tau_lo <= S (M qdd + h - J_c^T f) <= tau_hi over the
+  /// actuated joints, the bounds set by set_torque_rate (infinite until then).
+  int add_torque_rate(int level, double weight);
 
   VectorTracking& tracking(int handle);
   GazeKernel& gaze(int handle);
@@ -68,6 +71,9 @@ class NativeStep {
   OrientationTracking& orientation(int handle);
   ContactKernel& contact(int handle);
   void set_braking(int handle, const Eigen::VectorXd& braking);
+  /// The torque bounds of a torque-rate kernel for the next steps (+-inf: unbounded).
+  void set_torque_rate(int handle, const Eigen::Ref<const Eigen::VectorXd>& tau_lo,
+                       const Eigen::Ref<const Eigen::VectorXd>& tau_hi);
 
   /// One control step at (q, v) with the period dt; "" on success, else the failure. No
   /// heap allocation once the first step has sized everything.
@@ -138,6 +144,7 @@ class NativeStep {
   std::vector<CoPKernel> cop_;
   std::vector<JointLimitEntry> joint_limits_;
   std::vector<Eigen::VectorXd> tau_max_;
+  std::vector<std::pair<Eigen::VectorXd, Eigen::VectorXd>> rate_;  // torque bounds
   std::vector<std::pair<Eigen::MatrixXd, Eigen::VectorXd>> constants_;
   std::vector<int> used_;          // built level k -> stack level index
   std::vector<int> built_of_;      // stack level index -> built level (-1: empty)
