@@ -38,7 +38,7 @@ from hqp.model.layout import ContactType
 from hqp.robots.robot import ROOT_JOINT, Robot
 from hqp.solver.level import Level
 from hqp.solver.solution import LevelReport, Solution
-from hqp.stack import BuiltStack, Stack, TaskSpan
+from hqp.stack import BuiltStack, TaskSpan
 from hqp.tasks.base import Rows
 from hqp.tasks.centroidal import CentroidalMomentumTask
 from hqp.tasks.collision import ObstacleAvoidance, SelfCollision
@@ -131,6 +131,7 @@ class NativeStepMirror:
             self._add(core, task, level, self._contacts)
             self._names.append(task.name)
         self._rate_handle: int | None = None
+        self._rate_bounds = np.empty((2, model.na))  # (lower, upper) torques pushed down
         if self._rate_at is not None:
             self._rate_handle = self.step_core.add_torque_rate(self._rate_at, 1.0)
             self._names.append(RATE_TASK)
@@ -149,6 +150,11 @@ class NativeStepMirror:
             return level
         return self._rate_index if level == self._rate_at else level - 1
 
+    @property
+    def has_torque_rate(self) -> bool:
+        """Whether the mirror holds the servo's torque-rate level."""
+        return self._rate_handle is not None
+
     def set_torque_rate(self, tau_ref: np.ndarray | None, delta: np.ndarray) -> None:
         """Bound the next step's torques to ``tau_ref +- delta`` (the torque-rate level).
 
@@ -160,11 +166,14 @@ class NativeStepMirror:
         """
         if self._rate_handle is None:
             raise NotSupported("the mirror was built without the torque-rate level")
+        lo, up = self._rate_bounds
         if tau_ref is None:
-            inf = np.full(self.model.na, np.inf)
-            self.step_core.set_torque_rate(self._rate_handle, -inf, inf)
+            lo.fill(-np.inf)
+            up.fill(np.inf)
         else:
-            self.step_core.set_torque_rate(self._rate_handle, tau_ref - delta, tau_ref + delta)
+            np.subtract(tau_ref, delta, out=lo)
+            np.add(tau_ref, delta, out=up)
+        self.step_core.set_torque_rate(self._rate_handle, lo, up)
 
     def _add(self, core: Any, task: Any, level: int, contacts: dict[str, int]) -> None:
         s, w, model = self.step_core, task.weight, self.model
@@ -549,14 +558,14 @@ class NativeEngine:
         self._signature: tuple[Any, ...] | None = None
         self.steps = 0
 
-    def signature(self, stack: Stack, controller: Any = None) -> tuple[Any, ...]:
-        """Return the stack's structure and the parameters its kernels copy.
+    def signature(self, controller: Any) -> tuple[Any, ...]:
+        """Return what a mirror is built from: the controller's stack structure.
 
-        With ``controller``: also whether it has the torque-rate level, and where.
+        The level of each task, the parameters its kernel copies, and where the torque-rate
+        level sits (``None``: none).
         """
-        rate = None
-        if controller is not None and getattr(controller, "max_torque_rate", None) is not None:
-            rate = int(controller._rate_after)
+        stack = controller.stack
+        rate = None if controller.max_torque_rate is None else int(controller._rate_after)
         return tuple((stack.level_of_task(t.name), _parameters(t)) for t in stack.tasks) + (
             ("torque_rate", rate),)
 
@@ -566,7 +575,7 @@ class NativeEngine:
         if not stack.steady(t) or controller.final_metric is not None \
                 or controller.final_target is not None:
             return None
-        signature = self.signature(stack, controller)
+        signature = self.signature(controller)
         if signature != self._signature:
             self._signature = signature
             self.mirror, self.unsupported = None, None

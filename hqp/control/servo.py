@@ -69,7 +69,6 @@ bound sits with its torque limits, above the joint limits and the collision dist
 joint-limit level in conflict below it cannot turn into a torque step; docs/control.md)."""
 
 
-
 class Controller(abc.ABC):
     """Interface of a whole-body controller (HQP and null-space alike).
 
@@ -475,7 +474,7 @@ class WholeBodyController(Controller):
         # steady: advance changes nothing but tells contact-aware tasks the active contacts
         self.stack.advance(self.model, self.layout, self.dt, t, self.last_x)
         clock = time.perf_counter
-        if mirror._rate_handle is not None:
+        if mirror.has_torque_rate:
             assert self.max_torque_rate is not None
             mirror.set_torque_rate(self._rate_ref, self.max_torque_rate * self.dt)
         try:
