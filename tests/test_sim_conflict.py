@@ -54,7 +54,8 @@ def _check(log, model, conflicting):
     "paper-humanoid",
     "g1",
     # talos passes the same way (4.0 N m per step, no safe-mode step, no joint past a limit;
-    # 65 s of CPU for the 0.8 s run on the Python step): not run, to keep the suite's cost down
+    # 32 s of CPU for the 0.8 s run on the native step, session 13): not run, to keep the
+    # suite's cost down
 ])
 def test_a_centre_of_mass_move_faster_than_the_support_allows(name):
     """The CoM goal 5 cm forward in 0.4 s (a min-jerk peak of 1.8 m/s^2, more than the soles'
