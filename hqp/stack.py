@@ -230,6 +230,7 @@ class Stack:
         self._tasks: list[_TaskEntry] = []
         self._contacts: dict[str, _ContactEntry] = {}
         self._events: list[BlendEvent] = []
+        self._weak = [0.0] * len(names)
 
     # -- levels -----------------------------------------------------------------------------
 
@@ -237,6 +238,40 @@ class Stack:
     def n_levels(self) -> int:
         """Number of levels."""
         return len(self.level_names)
+
+    @property
+    def weak_thresholds(self) -> tuple[float, ...]:
+        """The weak-direction threshold of every level (:meth:`set_weak_threshold`)."""
+        return tuple(self._weak)
+
+    def weak_threshold(self, level: int | str | Category) -> float:
+        """Return the weak-direction threshold of a level (0: none)."""
+        return self._weak[self.level_of(level)]
+
+    def set_weak_threshold(self, level: int | str | Category, threshold: float) -> None:
+        """Set the weak-direction threshold of a level (``hqp.solver.Level.weak_threshold``).
+
+        Along each direction in which the level's rows, projected on what the levels above
+        leave free, have a singular value ``s`` below the threshold, the level's target is
+        scaled by ``(s / threshold)^2``: a nearly singular task gets a bounded step instead
+        of one growing as ``1 / s``. Directions at or above it are solved exactly. In the
+        units of the level's weighted rows (a task's rows times ``sqrt(weight)``: for a
+        position task of weight 1, metres of task motion per unit of the decision vector).
+
+        Raises:
+            InvalidInput: An unknown level, or a threshold that is not finite and ``>= 0``.
+
+        """
+        k = self.level_of(level)
+        try:
+            value = float(threshold)
+        except (TypeError, ValueError):
+            raise InvalidInput(f"Stack.set_weak_threshold: expected a float, got "
+                               f"{threshold!r}") from None
+        if isinstance(threshold, bool) or not (0.0 <= value < math.inf):
+            raise InvalidInput(f"Stack.set_weak_threshold: level {self.level_names[k]!r}: "
+                               f"expected a finite threshold >= 0, got {threshold!r}")
+        self._weak[k] = value
 
     def level_of(self, level: int | str | Category | None, task: Task | None = None) -> int:
         """Resolve a level given as an index, a name, a category, or ``None`` (task's category).
@@ -711,7 +746,8 @@ class Stack:
                 scaled.append(rows.scaled(math.sqrt(weight)))
             stacked = scaled[0] if len(scaled) == 1 else Rows.stack(scaled, n)
             levels.append(Level(A=stacked.A, b=stacked.b, C=stacked.C, lower=stacked.lower,
-                                upper=stacked.upper, name=self.level_names[index]))
+                                upper=stacked.upper, name=self.level_names[index],
+                                weak_threshold=self._weak[index]))
             level_index.append(index)
         return BuiltStack(levels, tuple(level_index), tuple(spans), all_rows, n)
 

@@ -48,6 +48,9 @@ class TaskStatus:
             infeasible on its own.
         sigma_min: Smallest singular value of the task's rows projected on the optimal set of
             the levels above (``nan`` when not computed).
+        weak_directions: Directions of the task's level filtered by its weak-direction
+            threshold at this step (:meth:`hqp.stack.Stack.set_weak_threshold`; 0 without
+            one).
 
     """
 
@@ -57,6 +60,7 @@ class TaskStatus:
     residual: float = 0.0
     yields_to: int | None = None
     sigma_min: float = float("nan")
+    weak_directions: int = 0
 
     @property
     def feasible(self) -> bool:

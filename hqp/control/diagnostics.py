@@ -143,7 +143,8 @@ class Diagnostics:
             rep = solution.levels[k]
             active_rows = set(int(i) for i in rep.active)
             for span in by_level.get(k, []):
-                out.append(self._hqp_status(built, span, x, Z, bases, rep.sigma_min, active_rows))
+                out.append(self._hqp_status(built, span, x, Z, bases, rep.sigma_min, active_rows,
+                                            rep.weak_directions))
             if full and k < len(built.levels) - 1:
                 mats = []
                 if level.A is not None:
@@ -157,7 +158,7 @@ class Diagnostics:
 
     def _hqp_status(self, built: BuiltStack, span: TaskSpan, x: np.ndarray, Z: np.ndarray,
                     bases: list[np.ndarray], level_sigma: float,
-                    active_rows: set[int]) -> TaskStatus:
+                    active_rows: set[int], weak: int = 0) -> TaskStatus:
         """Status of one task: its residual at ``x``, its rows projected on ``Z`` (levels above)."""
         rows = built.rows[span.name]
         parts = []
@@ -191,7 +192,7 @@ class Diagnostics:
         yields_to = None
         if status is Feasibility.CONFLICT and self.full:
             yields_to = self._yields_to(rows, r, bases, built, span)
-        return TaskStatus(span.name, span.level, status, residual, yields_to, sigma)
+        return TaskStatus(span.name, span.level, status, residual, yields_to, sigma, weak)
 
     def classify(self, residual: float, sigma: float, equalities: bool) -> Feasibility:
         """Return the status of a task from its unweighted residual norm and ``sigma_min``.

@@ -130,6 +130,9 @@ class NativeStepMirror:
             level = self._native_level(stack.level_of_task(task.name))
             self._add(core, task, level, self._contacts)
             self._names.append(task.name)
+        for k, threshold in enumerate(stack.weak_thresholds):
+            if threshold:
+                self.step_core.set_weak_threshold(self._native_level(k), threshold)
         self._rate_handle: int | None = None
         self._rate_bounds = np.empty((2, model.na))  # (lower, upper) torques pushed down
         if self._rate_at is not None:
@@ -424,6 +427,7 @@ class NativeStepMirror:
         if self._report_order is None:  # by built level, as Stack.build's spans
             self._report_order = sorted(enumerate(self._placements()), key=lambda e: e[1][2])
         costs, level_sigma = core.level_summary()
+        weak = core.weak_directions()
         sigmas = core.diagnose() if diagnostics.full else None
         residuals = core.residuals
         out = []
@@ -445,7 +449,7 @@ class NativeStepMirror:
                 return (diagnostics.hqp_statuses(built, solution),
                         tuple(float(c) for c in costs), built)
             out.append(TaskStatus(self._names[handle], self.stack_level(level), status,
-                                  residual, None, sigma))
+                                  residual, None, sigma, int(weak[built_level])))
         return tuple(out), tuple(float(c) for c in costs), None
 
     def _placements(self) -> list[tuple[Any, ...]]:
@@ -463,6 +467,7 @@ class NativeStepMirror:
         core = self.step_core
         n = core.n
         raw = core.levels()
+        weak = core.weak_directions()
         levels, reports, index = [], [], []
         names = self.stack.level_names
         for k, (level, A, b, C, lo, up) in enumerate(raw):
@@ -470,10 +475,11 @@ class NativeStepMirror:
             name = RATE_TASK if level == self._rate_at else names[self.stack_level(level)]
             levels.append(Level(A=A if A.shape[0] else None, b=b if A.shape[0] else None,
                                 C=C if C.shape[0] else None, lower=lo if C.shape[0] else None,
-                                upper=up if C.shape[0] else None, name=name))
+                                upper=up if C.shape[0] else None, name=name,
+                                weak_threshold=core.weak_threshold(level)))
             reports.append(LevelReport(name, cost, True, np.flatnonzero(state > 0),
                                        np.flatnonzero(state > 1), sigma, np.zeros(0),
-                                       np.zeros(0)))
+                                       np.zeros(0), int(weak[k])))
             index.append(self.stack_level(level))
         spans, rows = [], {}
         for name, (_kind, level, built, eq0, neq, in0, nin, sqrt_w) in zip(
@@ -561,13 +567,13 @@ class NativeEngine:
     def signature(self, controller: Any) -> tuple[Any, ...]:
         """Return what a mirror is built from: the controller's stack structure.
 
-        The level of each task, the parameters its kernel copies, and where the torque-rate
-        level sits (``None``: none).
+        The level of each task, the parameters its kernel copies, where the torque-rate
+        level sits (``None``: none) and the levels' weak-direction thresholds.
         """
         stack = controller.stack
         rate = None if controller.max_torque_rate is None else int(controller._rate_after)
         return tuple((stack.level_of_task(t.name), _parameters(t)) for t in stack.tasks) + (
-            ("torque_rate", rate),)
+            ("torque_rate", rate), ("weak_thresholds", stack.weak_thresholds))
 
     def ready(self, controller: Any, t: float) -> NativeStepMirror | None:
         """Return the mirror to run this step, or ``None`` when the Python step must run it."""

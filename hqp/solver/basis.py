@@ -50,7 +50,7 @@ from hqp.solver.active_set import (
 from hqp.solver.backends import QPBackend
 from hqp.solver.carried import FEAS_TOL, Carried, inequality_offsets, within
 from hqp.solver.level import CheckedLevel, Internal
-from hqp.solver.linalg import PivotedQR
+from hqp.solver.linalg import PivotedQR, weak_filter
 from hqp.solver.qp import QPBuffers, solve_qp
 from hqp.solver.report import sigma_level
 from hqp.solver.warm import ACTIVE_TOL, POLISH_ITER, WarmStart
@@ -137,7 +137,8 @@ class BasisAlgorithm:
         rows as inequalities.
 
         Returns:
-            ``(x, sigma_min per user level, QP count, seconds per level)``.
+            ``(x, sigma_min per user level, QP count, seconds per level, weak directions
+            per user level)``.
 
         """
         try:
@@ -146,18 +147,18 @@ class BasisAlgorithm:
             first = self._qp_count
             self._absorb = True
             try:
-                x, sigmas, count, times = self._solve_pass(all_levels, n)
+                x, sigmas, count, times, weak = self._solve_pass(all_levels, n)
             finally:
                 self._absorb = False
-            return x, sigmas, first + count, times
+            return x, sigmas, first + count, times, weak
 
     def _solve_pass(
         self, all_levels: list[tuple[CheckedLevel, int]], n: int
-    ) -> tuple[np.ndarray, list[float], int, list[float]]:
+    ) -> tuple[np.ndarray, list[float], int, list[float], list[int]]:
         """One pass of :meth:`solve` (absorbing rows if ``self._absorb``)."""
         opt = _OptimalSet(n)
         offsets, total_in = inequality_offsets(all_levels)
-        pending: list[tuple[CheckedLevel, Any, Any, Any]] = []
+        pending: list[tuple[CheckedLevel, Any, Any, Any, int]] = []
         times: list[float] = []
         self._qp_count = 0
         clock = time.perf_counter
@@ -165,7 +166,7 @@ class BasisAlgorithm:
             t0 = clock()
             if opt.r == 0 or lv.m_eq + lv.m_in == 0:
                 if kind == Internal.NONE:
-                    pending.append((lv, None, None, None))
+                    pending.append((lv, None, None, None, 0))
             else:
                 entry = self._level(k, lv, kind, opt, offsets[k], total_in, n)
                 if kind == Internal.NONE:
@@ -175,17 +176,18 @@ class BasisAlgorithm:
         x = opt.x
         if self.compute_sigma:
             sigmas = [sigma_level(lv, Ak, Zb, x, fact, self.rank_tol)
-                      for lv, Ak, Zb, fact in pending]
+                      for lv, Ak, Zb, fact, _weak in pending]
         else:
             sigmas = [float("nan")] * len(pending)
-        return x, sigmas, self._qp_count, times
+        return x, sigmas, self._qp_count, times, [entry[4] for entry in pending]
 
     def _level(self, k: int, lv: CheckedLevel, kind: int, opt: _OptimalSet, offset: int,
-               total_in: int, n: int) -> tuple[CheckedLevel, Any, Any, Any]:
+               total_in: int, n: int) -> tuple[CheckedLevel, Any, Any, Any, int]:
         """Solve level ``k`` over ``opt`` and restrict ``opt`` to its optimal set.
 
         Returns:
-            ``(lv, A Z, Z, factorisation of A Z)`` for the level's ``sigma_min``.
+            ``(lv, A Z, Z, factorisation of A Z)`` for the level's ``sigma_min``, and the
+            number of weak directions whose target was filtered.
 
         """
         A, C = lv.A, lv.C
@@ -202,6 +204,12 @@ class BasisAlgorithm:
         inert = mi == 0 and Ak.size > 0 and float(np.abs(Ak).max()) <= self.rank_tol * lv.a_scale
         if inert:
             Ak = np.zeros_like(Ak)
+        weak = 0
+        if lv.weak > 0.0 and kind == Internal.NONE and lv.m_eq and not inert:
+            # the weak directions' targets filtered before any step uses them (Level)
+            # (measured from the minimum-norm point x - Z Z^T x of the optimal set above)
+            centred = lv.b if opt.Z is None else bk + Ak @ (opt.Z.T @ opt.x)
+            bk, weak = weak_filter(Ak, bk, lv.weak, self.rank_tol, lv.a_scale, centred)
         ws = self.warm_start and self.memory.use(k)
         warm = self.memory.guess(k, mi, carried.gid, total_in, n) if ws and (
             mi or has_carried) else None
@@ -253,7 +261,7 @@ class BasisAlgorithm:
             carried.widen(carried.G @ opt.x)
         if mi:
             self._carry(lv, cx, violated, carried, offset)
-        return lv, Ak, Zb, fact
+        return lv, Ak, Zb, fact, weak
 
     # 1. least squares -------------------------------------------------------
     def _least_squares(

@@ -22,8 +22,10 @@ from scipy.linalg import lapack
 from hqp.errors import SolverFailure
 from hqp.solver.active_set import Guess, LevelRows, guess_from_point, solve_guess
 from hqp.solver.backends import QPBackend
+from hqp.solver.basis import FIX_TOL
 from hqp.solver.carried import Carried, inequality_offsets
-from hqp.solver.level import CheckedLevel
+from hqp.solver.level import CheckedLevel, Internal
+from hqp.solver.linalg import weak_filter
 from hqp.solver.qp import QPBuffers, solve_qp
 from hqp.solver.warm import ACTIVE_TOL, POLISH_ITER, WarmStart
 
@@ -60,7 +62,7 @@ class CascadeAlgorithm:
         """Solve the levels (the internal final ones included).
 
         Returns:
-            ``(x, QP count, seconds per level)``.
+            ``(x, QP count, seconds per level, weak directions per user level)``.
 
         """
         x = np.zeros(n)
@@ -69,31 +71,57 @@ class CascadeAlgorithm:
         carried = Carried(n)  # held inequality rows of earlier levels
         offsets, total_in = inequality_offsets(all_levels)
         times: list[float] = []
+        weak: list[int] = []
+        # for the weak-direction filter only: the basis algorithm's fixed rows (equalities and
+        # violated rows), whose null space is its Z
+        filtering = any(lv.weak > 0.0 for lv, _kind in all_levels)
+        F, QF = E, Q
         qp_count = 0
-        for k, (lv, _kind) in enumerate(all_levels):
+        for k, (lv, kind) in enumerate(all_levels):
             t0 = time.perf_counter()
+            b, count = lv.b, 0
+            if lv.weak > 0.0 and kind == Internal.NONE and lv.m_eq:
+                # the weak directions of A on the null space of the fixed rows above (the
+                # basis algorithm's Z)
+                Ap = lv.A - (lv.A @ QF) @ QF.T
+                rhs = lv.b - lv.A @ x
+                # (from the minimum-norm point QF QF^T x of the optimal set above)
+                centred = lv.b - lv.A @ (QF @ (QF.T @ x))
+                rhs, count = weak_filter(Ap, rhs, lv.weak, self.rank_tol, lv.a_scale, centred)
+                b = rhs + lv.A @ x
+            if kind == Internal.NONE:
+                weak.append(count)
             if lv.m_eq + lv.m_in:
-                x, used_qp = self._level(k, lv, x, E, carried, total_in, n)
+                x, used_qp = self._level(k, lv, b, x, E, carried, total_in, n)
                 qp_count += used_qp
                 if lv.m_eq:
                     E, Q = append_independent(E, Q, lv.A)
+                if filtering:
+                    fixed = lv.A
+                    if lv.m_in:
+                        cx = lv.C @ x
+                        viol = (cx > lv.upper + FIX_TOL * lv.up_scale) | (
+                            cx < lv.lower - FIX_TOL * lv.lo_scale)
+                        fixed = np.vstack([lv.A, lv.C[viol]])
+                    if fixed.shape[0]:
+                        F, QF = append_independent(F, QF, fixed)
                 if lv.m_in:
                     keep = lv.bounded
                     carried.add(lv.C[keep], lv.C[keep] @ x, lv.lower[keep], lv.upper[keep],
                                 lv.lo_scale[keep], lv.up_scale[keep],
                                 offsets[k] + np.flatnonzero(keep))
             times.append(time.perf_counter() - t0)
-        return x, qp_count, times
+        return x, qp_count, times, weak
 
-    def _level(self, k: int, lv: CheckedLevel, x: np.ndarray, E: np.ndarray, carried: Carried,
-               total_in: int, n: int) -> tuple[np.ndarray, bool]:
-        """Solve level ``k`` over the held rows; return its optimum and whether a QP ran."""
+    def _level(self, k: int, lv: CheckedLevel, b: np.ndarray, x: np.ndarray, E: np.ndarray,
+               carried: Carried, total_in: int, n: int) -> tuple[np.ndarray, bool]:
+        """Solve level ``k`` (target ``b``); return its optimum and whether a QP ran."""
         A, C = lv.A, lv.C
         mi = C.shape[0]
         p = carried.count
         q = E.shape[0]
         slot = ("cascade", k)
-        rows = LevelRows(A, lv.b, C, lv.lower, lv.upper, lv.lo_scale, lv.up_scale)
+        rows = LevelRows(A, b, C, lv.lower, lv.upper, lv.lo_scale, lv.up_scale)
         held = carried.rows()
         held_or_none = held if p else None
         Eh = E if q else None
@@ -114,7 +142,7 @@ class CascadeAlgorithm:
                                          E=Eh, e=eh, ref=ref)
         used_qp = v is None
         if v is None:
-            v, ok = self._qp(slot, lv, n, E, x, carried.G, carried.gl, carried.gu)
+            v, ok = self._qp(slot, lv, b, n, E, x, carried.G, carried.gl, carried.gu)
             if ws and np.isfinite(v).all():
                 xq = v[:n]
                 guess = guess_from_point(C @ xq if mi else None, rows,
@@ -139,11 +167,11 @@ class CascadeAlgorithm:
         return x, used_qp
 
     def _qp(
-        self, slot: Any, lv: CheckedLevel, n: int, E: np.ndarray, x: np.ndarray,
+        self, slot: Any, lv: CheckedLevel, b: np.ndarray, n: int, E: np.ndarray, x: np.ndarray,
         G: np.ndarray, gl: np.ndarray, gu: np.ndarray,
     ) -> tuple[np.ndarray, bool]:
-        """Solve the cascade's level QP over ``(x, slacks)`` through the backend."""
-        A, b, C = lv.A, lv.b, lv.C
+        """Solve the cascade's level QP (target ``b``) over ``(x, slacks)``."""
+        A, C = lv.A, lv.C
         mi = C.shape[0]
         p = G.shape[0]
         q = E.shape[0]

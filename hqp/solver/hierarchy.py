@@ -270,9 +270,9 @@ class HierarchicalSolver:
         all_levels = [(lv, Internal.NONE) for lv in checked] + internal
         sigmas: list[float] | None = None
         if isinstance(self._algorithm, BasisAlgorithm):
-            x, sigmas, qp_count, times = self._algorithm.solve(all_levels, n)
+            x, sigmas, qp_count, times, weak = self._algorithm.solve(all_levels, n)
         else:
-            x, qp_count, times = self._algorithm.solve(all_levels, n)
+            x, qp_count, times, weak = self._algorithm.solve(all_levels, n)
         if not np.all(np.isfinite(x)):
             raise SolverFailure(
                 f"backend {self.backend_name!r} returned a non-finite solution "
@@ -281,7 +281,7 @@ class HierarchicalSolver:
         if sigmas is None and self.compute_sigma:
             sigmas = sigma_recursion(checked, x, self.rank_tol)
         reports = tuple(
-            level_report(lv, x, np.nan if sigmas is None else sigmas[k])
+            level_report(lv, x, np.nan if sigmas is None else sigmas[k], weak[k])
             for k, lv in enumerate(checked)
         )
         L = len(checked)

@@ -26,6 +26,16 @@ class Level:
         lower: Lower bounds ``(m_in,)`` (``-inf`` entries allowed); ``None`` means ``-inf``.
         upper: Upper bounds ``(m_in,)`` (``+inf`` entries allowed); ``None`` means ``+inf``.
         name: Label used in reports and error messages.
+        weak_threshold: Singular-value threshold of the level's weak directions, in the
+            units of its (weighted) equality rows, ``>= 0``. Along each direction in which
+            the equality rows, projected on the optimal set of the levels above, have a
+            singular value ``s`` below it, the level's target is scaled by
+            ``(s / weak_threshold)^2``: the step there is bounded and goes to 0 at a
+            singularity instead of growing as ``1 / s`` (the seed's truncation of vanishing
+            eigenvalues, hierarchy paper eq. 22-23, made continuous). Directions at or
+            above it keep their exact target, so a level whose singular values all reach
+            it is solved exactly as with 0 (the default: no filtering). The level's
+            reported cost stays measured against ``b``.
 
     """
 
@@ -35,6 +45,7 @@ class Level:
     lower: Any = None
     upper: Any = None
     name: str = ""
+    weak_threshold: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -63,6 +74,8 @@ class CheckedLevel:
     """Largest absolute entry of ``A`` (0 without equality rows)."""
     c_scale: float = 0.0
     """Largest absolute entry of ``C`` (0 without inequality rows)."""
+    weak: float = 0.0
+    """The level's ``weak_threshold`` (0: no filtering)."""
 
     @property
     def m_eq(self) -> int:
@@ -294,7 +307,25 @@ def check_level(level: Any, k: int, n: int | None) -> CheckedLevel:
         bounded = (lower > -np.inf) | (upper < np.inf)
     a_scale = float(np.abs(A).max()) if A.shape[0] and A.shape[1] else 0.0
     c_scale = float(np.abs(C).max()) if C.shape[0] and C.shape[1] else 0.0
-    return CheckedLevel(A, b, C, lower, upper, name, lo_s, up_s, bounded, a_scale, c_scale)
+    weak = check_weak_threshold(level.weak_threshold, k, name)
+    return CheckedLevel(A, b, C, lower, upper, name, lo_s, up_s, bounded, a_scale, c_scale,
+                        weak)
+
+
+def check_weak_threshold(value: Any, k: int, name: str) -> float:
+    """Return a level's ``weak_threshold`` as a float, or raise :class:`InvalidLevel`."""
+    if isinstance(value, bool):
+        raise InvalidLevel(f"{_where(k, name, 'weak_threshold')}: expected a float, got "
+                           f"{value!r}")
+    try:
+        weak = float(value)
+    except (TypeError, ValueError):
+        raise InvalidLevel(f"{_where(k, name, 'weak_threshold')}: expected a float, got "
+                           f"{value!r}") from None
+    if not (0.0 <= weak < np.inf):
+        raise InvalidLevel(f"{_where(k, name, 'weak_threshold')}: expected a finite value "
+                           f">= 0, got {value!r}")
+    return weak
 
 
 _EMPTY = np.zeros(0)
@@ -342,4 +373,4 @@ def trusted_level(level: Level, n: int) -> CheckedLevel:
     a_scale = float(np.abs(A).max()) if A.size else 0.0
     c_scale = float(np.abs(C).max()) if C.size else 0.0
     return CheckedLevel(A, b, C, lower, upper, str(level.name), lo_s, up_s, bounded, a_scale,
-                        c_scale)
+                        c_scale, float(level.weak_threshold))

@@ -127,3 +127,59 @@ def lstsq(M: np.ndarray, rhs: np.ndarray, rank_tol: float, scale: float) -> np.n
     _v, x, _j, _rank, _info = _dgelsy(M, b, np.zeros(r, dtype=np.int32), cond, lwork,
                                       overwrite_a=0, overwrite_b=1)
     return x[:r, 0]
+
+
+WEAK_COUNT_FLOOR = 1e-7
+"""Relative singular value below which :func:`weak_filter` counts a direction as
+rank-deficient: the eigenvalues of ``M M^T`` carry an absolute error of ``~eps * s_max^2``,
+so ``s`` below ``~sqrt(eps) * s_max`` (1.5e-8) cannot be told from 0."""
+
+
+def weak_filter(M: np.ndarray, rhs: np.ndarray, threshold: float, rank_tol: float,
+                scale: float, centred: np.ndarray | None = None) -> tuple[np.ndarray, int]:
+    """Filter the target of a level's weak directions (the level's ``weak_threshold``).
+
+    With ``M = U S V^T`` (``M`` the level's equality rows projected on the optimal set
+    above, ``(m, r)``), the component of ``rhs`` along each left singular vector ``u_i``
+    whose singular value ``s_i`` is below ``threshold`` is scaled by ``(s_i / threshold)^2``:
+    the least-squares step along ``v_i`` becomes ``s_i / threshold^2 * u_i^T rhs`` (bounded
+    by ``|u_i^T rhs| / threshold``, continuous in ``s_i``, 0 at a singularity) instead of
+    ``u_i^T rhs / s_i``. Directions at or above the threshold are untouched, so a level whose
+    singular values all reach it keeps its exact target. Computed from the eigenvalues
+    ``s_i^2`` of ``M M^T`` (``m`` is a task's few rows); accurate to
+    ``eps * ||M||^2`` in ``s_i^2``, far below ``threshold^2`` for any useful threshold.
+
+    Args:
+        M: ``(m, r)`` projected equality rows.
+        rhs: ``(m,)`` target residual ``b - A x0``.
+        threshold: Singular-value threshold (``> 0``), in the level's row units.
+        rank_tol: Relative rank threshold: singular values at or below
+            ``max(rank_tol, WEAK_COUNT_FLOOR) * max(s_max, scale)`` are rank-deficient
+            directions (:data:`WEAK_COUNT_FLOOR`: below it, ``s^2`` from ``M M^T`` is
+            rounding), filtered (to 0, which changes no step) but not counted.
+        scale: Largest entry of the level's unprojected rows.
+        centred: The target residual at the minimum-norm point of the optimal set above
+            (``b - A x_c``, ``x_c = x0 - Z Z^T x0``; ``None``: ``rhs``). The weak
+            components are measured there, so that the filtered level does not depend on
+            which point ``x0`` of that set the solver holds: ``rhs - U_w diag(1 - f)
+            U_w^T centred``.
+
+    Returns:
+        ``(filtered rhs, number of weak directions above that floor)``.
+
+    """
+    m = M.shape[0]
+    if m == 0 or rhs.size == 0:
+        return rhs, 0
+    lam, U = np.linalg.eigh(M @ M.T)
+    t2 = threshold * threshold
+    weak = lam < t2
+    if not weak.any():
+        return rhs, 0
+    Uw = U[:, weak]
+    lw = np.maximum(lam[weak], 0.0)
+    shrink = 1.0 - lw / t2
+    floor = max(rank_tol, WEAK_COUNT_FLOOR) * max(float(np.sqrt(max(lam[-1], 0.0))), scale)
+    count = int(np.count_nonzero(lw > floor * floor))
+    ref = rhs if centred is None else centred
+    return rhs - Uw @ (shrink * (Uw.T @ ref)), count

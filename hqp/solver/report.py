@@ -72,7 +72,7 @@ def sigma_level(
     return mth_singular(s, m, r, rank_tol * max(float(s[0]) if s.size else 0.0, scale))
 
 
-def level_report(lv: CheckedLevel, x: np.ndarray, sigma: float) -> LevelReport:
+def level_report(lv: CheckedLevel, x: np.ndarray, sigma: float, weak: int = 0) -> LevelReport:
     """Build the level's report at the solution ``x``."""
     res = lv.A @ x - lv.b
     if lv.m_in:
@@ -97,6 +97,7 @@ def level_report(lv: CheckedLevel, x: np.ndarray, sigma: float) -> LevelReport:
         sigma_min=float(sigma),
         residual_eq=res,
         violation_in=viol,
+        weak_directions=int(weak),
     )
 
 

@@ -39,6 +39,11 @@ class LevelReport:
         residual_eq: ``A x - b``, ``(m_eq,)``.
         violation_in: Signed distance of ``C x`` outside ``[lower, upper]``
             (positive above ``upper``, negative below ``lower``, 0 inside), ``(m_in,)``.
+        weak_directions: Number of directions of the level's projected equality rows whose
+            singular value lies below the level's ``weak_threshold`` (and above
+            ``1e-7`` of the largest, below which it counts as rank-deficient): their
+            targets were scaled down (:class:`hqp.solver.Level`). 0 for a level without a
+            threshold.
 
     """
 
@@ -50,6 +55,7 @@ class LevelReport:
     sigma_min: float
     residual_eq: np.ndarray
     violation_in: np.ndarray
+    weak_directions: int = 0
 
 
 @dataclass(frozen=True)

@@ -55,7 +55,7 @@ class PySolver {
   PySolver(double rank_tol, bool warm_start, bool compute_sigma)
       : hierarchy_(Settings{rank_tol, warm_start, compute_sigma}) {}
 
-  /// levels: list of (A, b, C, lower, upper) float64 arrays of one n; final: None or
+  /// levels: list of (A, b, C, lower, upper[, weak_threshold]) float64 arrays of one n; final: None or
   /// (A, b, kind, a_scale) of the final-metric level. Returns the failing level's index
   /// (validation), or a result tuple.
   nb::object solve(nb::list levels, Index n, nb::object final, bool validate,
@@ -72,6 +72,7 @@ class PySolver {
       lv.C = nb::cast<DMat>(t[2]);
       lv.lo = nb::cast<DVec>(t[3]);
       lv.up = nb::cast<DVec>(t[4]);
+      lv.weak = nb::len(t) > 5 ? nb::cast<double>(t[5]) : 0.0;
       lv.kind = LevelKind::kUser;
       if (validate && check_level(lv, n)) return nb::int_(long(k));
       lv.finish();
@@ -86,6 +87,7 @@ class PySolver {
       lv.C.resize(0, n);
       lv.lo.resize(0);
       lv.up.resize(0);
+      lv.weak = 0.0;
       lv.finish();
       lv.a_scale = nb::cast<double>(t[3]);
     }
@@ -116,7 +118,7 @@ class PySolver {
           to_numpy(r.residual_eq.data(), std::size_t(r.residual_eq.size())),
           to_numpy(r.violation_in.data(), std::size_t(r.violation_in.size())),
           to_numpy(active_.data(), active_.size()), to_numpy(violated_.data(), violated_.size()),
-          r.seconds));
+          r.seconds, r.weak));
     }
     const Eigen::VectorXd& x = hierarchy_.x();
     return nb::make_tuple(to_numpy(x.data(), std::size_t(x.size())), reports,

@@ -163,6 +163,18 @@ inline void bind_step(nb::module_& m) {
       .def("add_torque_rate", &NativeStep::add_torque_rate, nb::arg("level"), nb::arg("weight"))
       .def("set_torque_rate", &NativeStep::set_torque_rate, nb::arg("handle"), nb::arg("tau_lo"),
            nb::arg("tau_hi"))
+      .def("set_weak_threshold", &NativeStep::set_weak_threshold, nb::arg("level"),
+           nb::arg("threshold"),
+           "The weak-direction threshold of a stack level (hqp.solver.Level.weak_threshold).")
+      .def("weak_threshold", &NativeStep::weak_threshold, nb::arg("level"))
+      .def(
+          "weak_directions",
+          [](const NativeStep& s) {
+            Eigen::VectorXi out(s.level_count());
+            for (int k = 0; k < s.level_count(); ++k) out[k] = s.result(k).weak;
+            return out;
+          },
+          "Weak directions filtered in each built level of the last step.")
       .def(
           "step",
           // Eigen::Ref: a contiguous float64 array is read in place (no copy per step)

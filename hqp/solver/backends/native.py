@@ -52,7 +52,7 @@ def _is_vector(a: Any, m: int) -> bool:
 
 
 def fast_rows(levels: Sequence[Level], n_hint: int | None) -> tuple[list[tuple], int] | None:
-    """Return the levels as ``(A, b, C, lower, upper)`` float64 arrays, without a copy.
+    """Return the levels as ``(A, b, C, lower, upper, weak_threshold)``, arrays without a copy.
 
     ``None`` when a level is not in that form already (lists, integers, a 1-D ``A``,
     ``b`` without ``A``...): the caller then converts and checks in Python.
@@ -78,6 +78,11 @@ def fast_rows(levels: Sequence[Level], n_hint: int | None) -> tuple[list[tuple],
         if type(lv) is not Level:
             return None
         A, b, C, lo, up = lv.A, lv.b, lv.C, lv.lower, lv.upper
+        weak = lv.weak_threshold
+        if type(weak) is not float or not 0.0 <= weak < np.inf:
+            if type(weak) is not int or weak < 0:
+                return None
+            weak = float(weak)
         if A is None:
             if b is not None:
                 return None
@@ -108,13 +113,13 @@ def fast_rows(levels: Sequence[Level], n_hint: int | None) -> tuple[list[tuple],
                 up = _constant(m, np.inf)
             elif not _is_vector(up, m):
                 return None
-        rows.append((A, b, C, lo, up))
+        rows.append((A, b, C, lo, up, weak))
     return rows, n
 
 
 def checked_rows(checked: Sequence[Any]) -> list[tuple]:
-    """Return ``(A, b, C, lower, upper)`` of levels checked by ``check_level``."""
-    return [(lv.A, lv.b, lv.C, lv.lower, lv.upper) for lv in checked]
+    """Return ``(A, b, C, lower, upper, weak_threshold)`` of levels checked by ``check_level``."""
+    return [(lv.A, lv.b, lv.C, lv.lower, lv.upper, lv.weak) for lv in checked]
 
 
 def explain_invalid(levels: Sequence[Level], k: int, n: int) -> None:
@@ -129,10 +134,11 @@ def make_solution(out: Any, levels: Sequence[Any], total: float) -> Solution:
     level_reports = []
     timings: dict[str, float] = {}
     for k, (rep, lv) in enumerate(zip(reports, levels)):
-        cost, satisfied, sigma, res, viol, active, violated, seconds = rep
+        cost, satisfied, sigma, res, viol, active, violated, seconds, weak = rep
         level_reports.append(LevelReport(
             name=str(lv.name), cost=cost, satisfied=satisfied, active=active,
-            violated=violated, sigma_min=sigma, residual_eq=res, violation_in=viol))
+            violated=violated, sigma_min=sigma, residual_eq=res, violation_in=viol,
+            weak_directions=weak))
         timings[f"level_{k}"] = seconds
     timings["final"] = final_s
     timings["total"] = total

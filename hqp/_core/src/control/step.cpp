@@ -1,6 +1,7 @@
 // The native control step; see step.hpp.
 #include "control/step.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
@@ -17,6 +18,7 @@ NativeStep::NativeStep(std::unique_ptr<RobotCore> robot, Index nv_base, LayoutC 
   G_.setZero(robot_->nv(), n_);
   J6_.setZero(6, robot_->nv());
   tau_.setZero(na_);
+  weak_.assign(std::size_t(std::max(n_levels_, 0)), 0.0);
 }
 
 int NativeStep::add(Kind kind, int level, double weight, int index, Index neq, Index nin) {
@@ -183,6 +185,19 @@ void NativeStep::set_braking(int handle, const Eigen::VectorXd& braking) {
   JointLimitEntry& j = joint_limits_[std::size_t(entries_[handle].index)];
   if (braking.size() != na_) throw std::invalid_argument("braking: one value per actuated joint");
   j.B = braking;
+}
+
+void NativeStep::set_weak_threshold(int level, double threshold) {
+  if (level < 0 || level >= n_levels_) throw std::out_of_range("weak threshold: no such level");
+  if (!(threshold >= 0.0 && threshold < std::numeric_limits<double>::infinity())) {
+    throw std::invalid_argument("weak threshold: expected a finite value >= 0");
+  }
+  weak_[std::size_t(level)] = threshold;
+}
+
+double NativeStep::weak_threshold(int level) const {
+  if (level < 0 || level >= n_levels_) throw std::out_of_range("weak threshold: no such level");
+  return weak_[std::size_t(level)];
 }
 
 void NativeStep::layout_levels() {
@@ -371,7 +386,10 @@ std::string NativeStep::step(const Eigen::Ref<const Eigen::VectorXd>& q,
       up *= e.sqrt_w;
     }
   }
-  for (std::size_t k = 0; k < used_.size(); ++k) data[k].finish();
+  for (std::size_t k = 0; k < used_.size(); ++k) {
+    data[k].weak = weak_[std::size_t(used_[k])];
+    data[k].finish();
+  }
   const std::string error = hierarchy_.solve(n_, Index(used_.size()));
   if (!error.empty()) return error;
   tau_.noalias() = G_.bottomRows(na_) * hierarchy_.x();

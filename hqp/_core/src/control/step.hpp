@@ -75,6 +75,11 @@ class NativeStep {
   void set_torque_rate(int handle, const Eigen::Ref<const Eigen::VectorXd>& tau_lo,
                        const Eigen::Ref<const Eigen::VectorXd>& tau_hi);
 
+  /// The weak-direction threshold of stack level `level` (hqp.solver.Level.weak_threshold,
+  /// in the units of the level's weighted rows; 0, the default: no filtering).
+  void set_weak_threshold(int level, double threshold);
+  double weak_threshold(int level) const;
+
   /// One control step at (q, v) with the period dt; "" on success, else the failure. No
   /// heap allocation once the first step has sized everything.
   std::string step(const Eigen::Ref<const Eigen::VectorXd>& q,
@@ -146,6 +151,7 @@ class NativeStep {
   std::vector<Eigen::VectorXd> tau_max_;
   std::vector<std::pair<Eigen::VectorXd, Eigen::VectorXd>> rate_;  // torque bounds
   std::vector<std::pair<Eigen::MatrixXd, Eigen::VectorXd>> constants_;
+  std::vector<double> weak_;       // weak threshold per stack level
   std::vector<int> used_;          // built level k -> stack level index
   std::vector<int> built_of_;      // stack level index -> built level (-1: empty)
   bool laid_out_ = false;

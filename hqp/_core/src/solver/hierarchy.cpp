@@ -87,6 +87,7 @@ void Slot::reserve(Index n, Index me, Index mi, Index P, Index total_in) {
   as.reserve(me, mi, P, n, n, kMaxIter);
   qp.reserve(nq, mi + P);
   sv.reserve(me + mi, n);
+  weak.reserve(me, n);
   bk.resize(me);
   xl.resize(n);
   tmp.resize(n);
@@ -207,6 +208,7 @@ std::string Hierarchy::solve_pass(Index n, Index user_levels, bool absorb) {
     slot.projected = false;
     slot.has_fact = false;
     slot.Zb = Z;
+    if (k < user_levels) results_[k].weak = 0;
     if (r == 0 || me + mi == 0) {
       if (k < user_levels) results_[k].seconds = seconds_since(t0);
       off += mi;
@@ -232,6 +234,12 @@ std::string Hierarchy::solve_pass(Index n, Index user_levels, bool absorb) {
     if (inert) Ak.setZero();
     slot.bk = lv.b;
     slot.bk.noalias() -= lv.A * x_;
+    if (lv.weak > 0.0 && lv.kind == LevelKind::kUser && me && !inert) {
+      // the weak directions' targets filtered before any step uses them (Level)
+      const int weak = slot.weak.apply(Ak, slot.bk, Z ? &Zm : nullptr, x_, lv.b, lv.weak,
+                                       rank_tol, lv.a_scale);
+      if (k < user_levels) results_[k].weak = weak;
+    }
     // 1. least squares on the equality rows
     const bool ws = settings_.warm_start && warm_slot(slot);
     bool have_warm = false;

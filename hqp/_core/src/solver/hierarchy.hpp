@@ -40,6 +40,7 @@ struct LevelData {
   VectorXd b, lo, up, los, ups;
   IVec bounded;
   double a_scale = 0.0, c_scale = 0.0;
+  double weak = 0.0;  ///< the level's weak_threshold (0: no filtering)
   LevelKind kind = LevelKind::kUser;
   /// Scales and flags from A, b, C, lo, up (the fields of hqp.solver.level.CheckedLevel).
   void finish();
@@ -55,6 +56,7 @@ struct LevelResult {
   VectorXd residual_eq;   ///< A x - b (m_eq,)
   VectorXd violation_in;  ///< signed distance of C x outside [lo, up] (m_in,)
   IVec state;             ///< per inequality row: 0 inside, 1 active, 2 active and violated
+  int weak = 0;           ///< weak directions whose target was filtered
   double seconds = 0.0;
 };
 
@@ -83,6 +85,7 @@ struct Slot {
   ActiveSetSolver as;
   LevelQP qp;
   SingularValues sv;
+  WeakFilter weak;
   /// Capacity for a level of me equality and mi inequality rows over n variables below
   /// levels of P inequality rows in all; the fixed-size members sized.
   void reserve(Index n, Index me, Index mi, Index P, Index total_in);

@@ -391,4 +391,63 @@ CMapV SingularValues::compute(const CMatRef& M, double rank_tol, double scale) {
   return CMapV(s.data(), m);
 }
 
+void WeakFilter::reserve(Index m, Index r) {
+  G_.reserve(m, m);
+  V_.reserve(m, m);
+  z_.reserve(r);
+  c_.reserve(m);
+}
+
+int WeakFilter::apply(const CMatRef& M, VecRef rhs, const CMapM* Z, const CVecRef& x0,
+                      const CVecRef& b, double threshold, double rank_tol, double scale) {
+  const Index m = M.rows();
+  if (m == 0) return 0;
+  MapV centred = c_.vec(m);
+  if (Z) {
+    MapV z = z_.vec(Z->cols());
+    z.noalias() = Z->transpose() * x0;
+    centred = rhs;
+    centred.noalias() += M * z;
+  } else {
+    centred = b;
+  }
+  MapM G = G_.mat(m, m);
+  MapM V = V_.mat(m, m);
+  G.noalias() = M * M.transpose();
+  V.setIdentity();
+  // cyclic Jacobi: rotate every off-diagonal entry away until none exceeds eps relative to
+  // its diagonal pair (high relative accuracy), or is negligible against the whole matrix
+  const double eps = std::numeric_limits<double>::epsilon();
+  const double top = G.diagonal().cwiseAbs().maxCoeff();
+  const double negligible = std::numeric_limits<double>::min() + eps * eps * top;
+  for (int sweep = 0; sweep < 64; ++sweep) {
+    bool rotated = false;
+    for (Index p = 0; p < m; ++p) {
+      for (Index q = p + 1; q < m; ++q) {
+        const double apq = std::abs(G(q, p));
+        if (apq <= negligible || apq <= eps * std::sqrt(std::abs(G(p, p) * G(q, q)))) continue;
+        Eigen::JacobiRotation<double> J;
+        J.makeJacobi(G, p, q);
+        G.applyOnTheLeft(p, q, J.adjoint());
+        G.applyOnTheRight(p, q, J);
+        V.applyOnTheRight(p, q, J);
+        rotated = true;
+      }
+    }
+    if (!rotated) break;
+  }
+  const double t2 = threshold * threshold;
+  const double s_max = std::sqrt(std::max(G.diagonal().maxCoeff(), 0.0));
+  const double floor = std::max(rank_tol, kWeakCountFloor) * std::max(s_max, scale);
+  int count = 0;
+  for (Index i = 0; i < m; ++i) {
+    const double lam = std::max(G(i, i), 0.0);
+    if (G(i, i) >= t2) continue;
+    const double c = V.col(i).dot(centred);
+    rhs.noalias() -= ((1.0 - lam / t2) * c) * V.col(i);
+    if (lam > floor * floor) ++count;
+  }
+  return count;
+}
+
 }  // namespace hqp

@@ -170,6 +170,29 @@ class PivotedQR {
 };
 
 
+/// The filter of a level's weak directions (the C++ twin of hqp.solver.linalg.weak_filter):
+/// the target component along each left singular vector of M (m, r) whose singular value s
+/// lies below `threshold` is scaled by (s / threshold)^2. From the eigen-decomposition of
+/// M M^T by cyclic Jacobi rotations (m is a task's few rows; accurate to eps * ||M||^2 in
+/// s^2, as LAPACK's dsyevd of the Python reference), on this object's storage.
+/// hqp.solver.linalg.WEAK_COUNT_FLOOR: singular values below it (relative), as s^2 from
+/// M M^T, cannot be told from 0.
+constexpr double kWeakCountFloor = 1e-7;
+
+class WeakFilter {
+ public:
+  void reserve(Index m, Index r);
+  /// Filter rhs = b - A x0 (m,) in place, M = A Z; returns the number of weak directions
+  /// above max(rank_tol, kWeakCountFloor) * max(s_max, scale). The weak components are
+  /// measured at the minimum-norm point x0 - Z Z^T x0 of the optimal set above (`Z`
+  /// nullptr: the identity, that point is 0 and the target b), as weak_filter's `centred`.
+  int apply(const CMatRef& M, VecRef rhs, const CMapM* Z, const CVecRef& x0,
+            const CVecRef& b, double threshold, double rank_tol, double scale);
+
+ private:
+  WorkM G_, V_, z_, c_;
+};
+
 /// Minimum-norm least squares of M y ~ rhs (the C++ twin of hqp.solver.linalg.lstsq):
 /// pivoted QR with the threshold rank_tol * max(|R_00|, scale).
 class LeastSquares {
