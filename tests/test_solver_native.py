@@ -247,6 +247,27 @@ def test_compiled_level_qp_matches_daqp():
     np.testing.assert_allclose(v, x, atol=1e-9)
 
 
+def test_level_qp_retry_statistics_count_each_attempt():
+    """The retry statistics count a level QP's first DAQP attempt, its success and its time."""
+    from hqp._core import _ext
+
+    rng = np.random.default_rng(4)
+    B = rng.standard_normal((8, 6))
+    H = B.T @ B + 0.1 * np.eye(6)
+    C = rng.standard_normal((5, 6))
+    _ext.reset_qp_stats()
+    calls, ok, ns = _ext.qp_stats()
+    assert calls.shape == (31,) and not calls.any() and not ok.any() and not ns.any()
+    for _ in range(3):
+        _v, solved = _ext.level_qp(H, rng.standard_normal(6), C, -0.2 * np.ones(5), 0.1 * np.ones(5))
+        assert solved
+    calls, ok, ns = _ext.qp_stats()
+    assert calls[0] == 3 and ok[0] == 3 and ns[0] > 0
+    assert not calls[1:].any() and (ok <= calls).all()
+    _ext.reset_qp_stats()
+    assert not _ext.qp_stats()[0].any()
+
+
 def test_core_links_the_wheels_pinocchio():
     """The core's pinocchio (C++ API, the pin wheel's libpinocchio) equals the Python one."""
     from hqp._core import _ext

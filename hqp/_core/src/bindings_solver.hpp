@@ -184,6 +184,23 @@ inline void bind_solver(nb::module_& m) {
       "The native solver's non-negative least squares: min ||A x - b||, x >= 0, early exit "
       "at res_tol (< 0: none); returns (x, residual, residual <= res_tol, column entries). "
       "For tests.");
+  m.def(
+      "qp_stats",
+      []() {
+        const QPStats st = qp_stats();
+        const std::size_t k = QPStats::kAttempts + 1;
+        Eigen::Matrix<long long, Eigen::Dynamic, 1> calls(k), ok(k), ns(k);
+        for (std::size_t i = 0; i < k; ++i) {
+          calls[Index(i)] = st.calls[i];
+          ok[Index(i)] = st.successes[i];
+          ns[Index(i)] = st.nanoseconds[i];
+        }
+        return nb::make_tuple(calls, ok, ns);
+      },
+      "The level QPs' retry statistics of this process: (calls, successes, nanoseconds) per "
+      "attempt, DAQP's (margin 0, 1e-9, 1e-7) x (primal_tol 1e-10, 1e-8) x (eps_prox 1e-6, "
+      "1e-4, 1e-2, 1, auto) in that nesting order, then ProxQP's.");
+  m.def("reset_qp_stats", &reset_qp_stats, "Zero the level QPs' retry statistics.");
 #ifdef HQP_CHECK_MALLOC
   m.attr("malloc_checked") = true;
 #else

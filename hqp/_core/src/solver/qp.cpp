@@ -1,6 +1,8 @@
 // DAQP calls of the native solver; see qp.hpp.
 #include "solver/qp.hpp"
 
+#include <atomic>
+#include <chrono>
 #include <cmath>
 #include <limits>
 
@@ -15,7 +17,7 @@ namespace hqp {
 namespace {
 
 constexpr double kDaqpInf = 1e30;
-constexpr double kRetryMargins[] = {1e-9, 1e-7};
+constexpr double kMargins[] = {0.0, 1e-9, 1e-7};  // bounds as given, then relaxed
 constexpr int kRelaxSticky = 20;
 constexpr double kEpsProx[] = {1e-6, 1e-4, 1e-2, 1.0, -1.0};
 constexpr double kPrimalTol[] = {1e-10, 1e-8};
@@ -24,7 +26,40 @@ constexpr int kProxMaxInner = 100;
 
 double bound_scale(double b) { return std::isfinite(b) ? std::max(1.0, std::abs(b)) : 1.0; }
 
+struct AtomicStats {
+  std::atomic<long long> calls[QPStats::kAttempts + 1];
+  std::atomic<long long> successes[QPStats::kAttempts + 1];
+  std::atomic<long long> nanoseconds[QPStats::kAttempts + 1];
+};
+AtomicStats g_stats{};
+
+void count(int attempt, bool ok, std::chrono::steady_clock::time_point t0) {
+  const auto ns = std::chrono::duration_cast<std::chrono::nanoseconds>(
+                      std::chrono::steady_clock::now() - t0).count();
+  g_stats.calls[attempt].fetch_add(1, std::memory_order_relaxed);
+  if (ok) g_stats.successes[attempt].fetch_add(1, std::memory_order_relaxed);
+  g_stats.nanoseconds[attempt].fetch_add(ns, std::memory_order_relaxed);
+}
+
 }  // namespace
+
+QPStats qp_stats() {
+  QPStats out{};
+  for (int i = 0; i <= QPStats::kAttempts; ++i) {
+    out.calls[i] = g_stats.calls[i].load(std::memory_order_relaxed);
+    out.successes[i] = g_stats.successes[i].load(std::memory_order_relaxed);
+    out.nanoseconds[i] = g_stats.nanoseconds[i].load(std::memory_order_relaxed);
+  }
+  return out;
+}
+
+void reset_qp_stats() {
+  for (int i = 0; i <= QPStats::kAttempts; ++i) {
+    g_stats.calls[i].store(0, std::memory_order_relaxed);
+    g_stats.successes[i].store(0, std::memory_order_relaxed);
+    g_stats.nanoseconds[i].store(0, std::memory_order_relaxed);
+  }
+}
 
 void LevelQP::reserve(Index n, Index m) {
   H_.reserve(n, n);
@@ -39,7 +74,8 @@ void LevelQP::reserve(Index n, Index m) {
   sense_.reserve(std::size_t(m));
 }
 
-bool LevelQP::daqp(double margin, VecRef v) {
+bool LevelQP::daqp(int margin_index, VecRef v) {
+  const double margin = kMargins[margin_index];
   const int n = int(n_);
   const int m = int(m_);
   MapV bu = bu_.vec(m), bl = bl_.vec(m);
@@ -55,8 +91,11 @@ bool LevelQP::daqp(double margin, VecRef v) {
   }
   sense_.assign(std::size_t(m), 0);
   MapV lam = lam_.vec(std::max(m, 1));
-  for (double primal_tol : kPrimalTol) {
-    for (double eps_prox : kEpsProx) {
+  for (int it = 0; it < QPStats::kTols; ++it) {
+    const double primal_tol = kPrimalTol[it];
+    for (int ie = 0; ie < QPStats::kEps; ++ie) {
+      const double eps_prox = kEpsProx[ie];
+      const auto t0 = std::chrono::steady_clock::now();
       DAQPProblem qp;
       qp.n = n;
       qp.m = m;
@@ -81,7 +120,9 @@ bool LevelQP::daqp(double margin, VecRef v) {
       res.x = v.data();
       res.lam = lam.data();
       daqp_quadprog(&res, &qp, &settings);
-      if (res.exitflag >= 1 && v.allFinite()) return true;
+      const bool ok = res.exitflag >= 1 && v.allFinite();
+      count((margin_index * QPStats::kTols + it) * QPStats::kEps + ie, ok, t0);
+      if (ok) return true;
     }
   }
   v.setConstant(std::numeric_limits<double>::quiet_NaN());
@@ -94,6 +135,7 @@ bool LevelQP::proxqp(VecRef v) {
   // report infeasibility (in the Python reference, quadprog plays this part). It allocates
   // its own workspace at each call.
   namespace pq = proxsuite::proxqp;
+  const auto t0 = std::chrono::steady_clock::now();
   const Index n = n_, m = m_;
   pq::dense::QP<double> qp(n, 0, m);
   qp.settings.eps_abs = 1e-9;
@@ -112,8 +154,10 @@ bool LevelQP::proxqp(VecRef v) {
   VectorXd lo = lo_.vec().cwiseMax(-1e20), up = up_.vec().cwiseMin(1e20);
   qp.init(H, g, proxsuite::nullopt, proxsuite::nullopt, C, lo, up);
   qp.solve();
-  if (qp.results.info.status != pq::QPSolverOutput::PROXQP_SOLVED || !qp.results.x.allFinite())
-    return false;
+  const bool ok =
+      qp.results.info.status == pq::QPSolverOutput::PROXQP_SOLVED && qp.results.x.allFinite();
+  count(QPStats::kAttempts, ok, t0);
+  if (!ok) return false;
   v = qp.results.x;
   return true;
 }
@@ -142,15 +186,15 @@ bool LevelQP::solve(const CMatRef& H, const CVecRef& g, const CMatRef& C, const 
   if (has_in && sticky_ >= 0) {
     const int i = sticky_;
     if (--sticky_left_ <= 0) sticky_ = -1;
-    if (daqp(kRetryMargins[i], v)) return true;
+    if (daqp(1 + i, v)) return true;
     sticky_ = -1;
   }
-  bool ok = daqp(0.0, v);
+  bool ok = daqp(0, v);
   if (ok || !has_in) return ok;
   MapV v2 = v2_.vec(n_);
   for (int i = 0; i < 2; ++i) {
     if (i && v.allFinite()) break;
-    if (daqp(kRetryMargins[i], v2)) {
+    if (daqp(1 + i, v2)) {
       sticky_ = i;
       sticky_left_ = kRelaxSticky;
       v = v2;

@@ -10,6 +10,21 @@
 
 namespace hqp {
 
+/// What the level QPs of this process tried and what converged (a diagnostic of the retry
+/// cascade: relaxed bounds x DAQP tolerances x proximal weights, then ProxQP). Counters are
+/// relaxed atomics: cheap, and safe with steps in several threads.
+struct QPStats {
+  static constexpr int kMargins = 3, kTols = 2, kEps = 5;
+  static constexpr int kAttempts = kMargins * kTols * kEps;
+  /// DAQP calls per (margin, primal_tol, eps_prox) attempt, in the order tried; the last
+  /// entry is ProxQP's.
+  long long calls[kAttempts + 1];
+  long long successes[kAttempts + 1];
+  long long nanoseconds[kAttempts + 1];
+};
+QPStats qp_stats();
+void reset_qp_stats();
+
 class LevelQP {
  public:
   /// Capacity for n variables and m inequality rows (DAQP allocates its own workspace per
@@ -24,7 +39,7 @@ class LevelQP {
 
  private:
   using RowMap = Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>;
-  bool daqp(double margin, VecRef v);
+  bool daqp(int margin_index, VecRef v);
   bool proxqp(VecRef v);
   // fixed-capacity storage (linalg.hpp's Work); H_ and A_ hold row-major matrices
   WorkM H_, A_, g_, lo_, up_, bu_, bl_, lam_, v2_;
