@@ -259,7 +259,8 @@ def test_level_qp_retry_statistics_count_each_attempt():
     calls, ok, ns = _ext.qp_stats()
     assert calls.shape == (31,) and not calls.any() and not ok.any() and not ns.any()
     for _ in range(3):
-        _v, solved = _ext.level_qp(H, rng.standard_normal(6), C, -0.2 * np.ones(5), 0.1 * np.ones(5))
+        g = rng.standard_normal(6)
+        _v, solved = _ext.level_qp(H, g, C, -0.2 * np.ones(5), 0.1 * np.ones(5))
         assert solved
     calls, ok, ns = _ext.qp_stats()
     assert calls[0] == 3 and ok[0] == 3 and ns[0] > 0
