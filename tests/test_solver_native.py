@@ -363,3 +363,29 @@ def test_the_native_fallbacks_end_with_the_cascade():
                 np.all(c <= L.upper + 1e-6 * np.maximum(1, abs(L.upper)))
         else:
             np.testing.assert_allclose(L.A @ sol.x, L.b, atol=1e-7 * max(1, abs(L.b).max()))
+
+
+def test_a_quick_level_qp_tries_the_cheap_attempts_only():
+    """``solve_qp(quick=True)`` (the basis algorithm's first pass): DAQP's small proximal
+    weight at both tolerances, no quadprog; the same minimiser where that solves the QP."""
+    from hqp.solver.backends import make_backend
+    from hqp.solver.backends.daqp import ATTEMPTS, QUICK_ATTEMPTS
+    from hqp.solver.qp import last_resort_count, solve_qp
+
+    assert QUICK_ATTEMPTS == ((1e-10, 1e-6), (1e-8, 1e-6)) and set(QUICK_ATTEMPTS) < set(ATTEMPTS)
+    backend = make_backend("daqp")
+    rng = np.random.default_rng(5)
+    B = rng.standard_normal((8, 6))
+    H, g, C = B.T @ B + 0.1 * np.eye(6), rng.standard_normal(6), rng.standard_normal((5, 6))
+    lo, up = -0.2 * np.ones(5), 0.1 * np.ones(5)
+    full, ok_full = solve_qp(backend, "a", H, g, None, None, C, lo, up)
+    quick, ok_quick = solve_qp(backend, "b", H, g, None, None, C, lo, up, quick=True)
+    assert ok_full and ok_quick
+    np.testing.assert_allclose(quick, full, atol=1e-10)
+    # an empty feasible set (x >= 1 and x <= 0): quick gives up without quadprog
+    C1, lo1, up1 = np.array([[1.0], [1.0]]), np.array([1.0, -np.inf]), np.array([np.inf, 0.0])
+    before = last_resort_count()
+    v, ok = solve_qp(backend, "c", np.eye(1), np.zeros(1), None, None, C1, lo1, up1, quick=True)
+    assert not ok and not np.isfinite(v).all() and last_resort_count() == before
+    solve_qp(backend, "d", np.eye(1), np.zeros(1), None, None, C1, lo1, up1)
+    assert last_resort_count() == before + 1

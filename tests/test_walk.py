@@ -144,10 +144,8 @@ def test_walk_makes_eight_footsteps_forward() -> None:
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason=(
-    "open defect (issue 17): in session 12's fresh environment (the same on main before that "
-    "session's change) one step of the walk has the solver's torques 0.000548 N m past a "
-    "torque limit, beyond the 1e-6 relative the servo calls rounding, and the servo clips it; "
-    "session 10's CI measured 0 such steps"))
+# a strict xfail from session 12 to 15: one step 0.000548 N m past a torque limit, clipped by
+# the servo; gone since the hierarchy's first pass tries DAQP's cheap attempts only (a level
+# they cannot solve goes to the absorbing pass instead of the relaxed-bound and ProxQP retries)
 def test_walk_meets_the_torque_limits_without_the_servo_clipping() -> None:
     assert _walk().metrics["controller_clipped_steps"] == 0

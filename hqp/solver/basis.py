@@ -373,7 +373,7 @@ class BasisAlgorithm:
             return solve_qp(self.backend, k, H11, g1, None, None,
                             held.G if has_carried else None,
                             held.gl if has_carried else None,
-                            held.gu if has_carried else None)
+                            held.gu if has_carried else None, quick=not self._absorb)
         H, g, Cq = self.buffers.get(k, r, mi, held.G.shape[0], 0)[:3]
         H[:r, :r] = H11
         g[:r] = g1
@@ -382,7 +382,7 @@ class BasisAlgorithm:
             Cq[mi:, :r] = held.G
         lo = np.concatenate((rows.lo, held.gl))
         up = np.concatenate((rows.up, held.gu))
-        v, ok = solve_qp(self.backend, k, H, g, None, None, Cq, lo, up)
+        v, ok = solve_qp(self.backend, k, H, g, None, None, Cq, lo, up, quick=not self._absorb)
         return v[:r], ok
 
     def _polish(self, k: int, rows: LevelRows, held: CarriedRows,

@@ -53,7 +53,8 @@ def last_resort_count() -> int:
 
 def solve_qp(backend: QPBackend, slot: Any, H: np.ndarray, g: np.ndarray,
              E: np.ndarray | None, e: np.ndarray | None, C: np.ndarray | None,
-             lo: np.ndarray | None, up: np.ndarray | None) -> tuple[np.ndarray, bool]:
+             lo: np.ndarray | None, up: np.ndarray | None,
+             quick: bool = False) -> tuple[np.ndarray, bool]:
     """Call the backend; on failure retry with bounds relaxed by :data:`RETRY_MARGINS`.
 
     If no finite point came back at all, quadprog is tried (a warning is
@@ -64,7 +65,12 @@ def solve_qp(backend: QPBackend, slot: Any, H: np.ndarray, g: np.ndarray,
     The cost is normalised first (``H / s``, ``g / s`` with ``s`` the largest entry
     of ``H``): the minimiser does not change, and the backends' absolute
     tolerances then mean the same thing for levels of any scale.
+
+    ``quick``: the backend's cheap attempts only (:meth:`QPBackend.solve_quick`) at every
+    margin, and no quadprog: for a caller that has a better remedy than the expensive
+    retries (the basis algorithm's absorbing second pass).
     """
+    solve = backend.solve_quick if quick else backend.solve
     scale = float(np.abs(H).max()) if H.size else 0.0
     if scale > 0.0 and (scale < 0.1 or scale > 10.0):
         H = H / scale
@@ -79,11 +85,11 @@ def solve_qp(backend: QPBackend, slot: Any, H: np.ndarray, g: np.ndarray,
             del memo[slot]
         else:
             sticky[1] = left - 1
-        v, ok = backend.solve(slot, H, g, E, e, C, *_relaxed(lo, up, RETRY_MARGINS[i]))
+        v, ok = solve(slot, H, g, E, e, C, *_relaxed(lo, up, RETRY_MARGINS[i]))
         if ok:
             return v, ok
         memo.pop(slot, None)
-    v, ok = backend.solve(slot, H, g, E, e, C, lo, up)
+    v, ok = solve(slot, H, g, E, e, C, lo, up)
     if ok or not has_in:
         return v, ok
     for i, margin in enumerate(RETRY_MARGINS):
@@ -91,13 +97,13 @@ def solve_qp(backend: QPBackend, slot: Any, H: np.ndarray, g: np.ndarray,
             break  # larger relaxations only where nothing finite came back
         logger.debug("backend %s failed on QP %s; retrying with bounds relaxed by %g",
                      backend.name, slot, margin)
-        v2, ok2 = backend.solve(slot, H, g, E, e, C, *_relaxed(lo, up, margin))
+        v2, ok2 = solve(slot, H, g, E, e, C, *_relaxed(lo, up, margin))
         if ok2:
             memo[slot] = [i, RELAX_STICKY]
             return v2, ok2
         if not np.isfinite(v).all():
             v = v2
-    if not np.isfinite(v).all():
+    if not quick and not np.isfinite(v).all():
         # Last resort (rare: nearly degenerate feasible sets of real whole-body
         # stacks): another active-set method, rather than no solution at all.
         key = (backend.name, slot)

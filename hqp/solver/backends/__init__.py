@@ -56,6 +56,16 @@ class QPBackend(abc.ABC):
 
         """
 
+    def solve_quick(self, slot: Hashable, H: np.ndarray, g: np.ndarray, E: np.ndarray | None,
+                    e: np.ndarray | None, C: np.ndarray | None, lo: np.ndarray | None,
+                    up: np.ndarray | None) -> tuple[np.ndarray, bool]:
+        """Solve as :meth:`solve` does, with the backend's cheap attempts only.
+
+        Called by :func:`hqp.solver.qp.solve_qp` with ``quick`` (the basis algorithm's first
+        pass); by default :meth:`solve`.
+        """
+        return self.solve(slot, H, g, E, e, C, lo, up)
+
     def reset(self) -> None:  # noqa: B027 - optional hook
         """Forget persistent problems (the next solves start cold)."""
 

@@ -45,6 +45,14 @@ infeasibility; a failed attempt costs a few dozen iterations. The hierarchy
 widens its carried bounds to contain the returned point, so a ``1e-8``
 violation only moves a bound by that much."""
 
+QUICK_ATTEMPTS = tuple(a for a in ATTEMPTS if a[1] == EPS_PROX_SEQUENCE[0])
+"""The attempts of :meth:`DaqpBackend.solve_quick`: the small proximal weight at both primal
+tolerances. The larger weights cost 1-4 ms each where they are reached (the failing level
+QPs of a pushed robot) and succeed on about 1 % of their calls (``_ext.qp_stats`` on the
+native twin, paper-humanoid pushed by 331 N, session 15): the basis algorithm's first pass
+tries these only, and a level they cannot solve sends the solve to the absorbing second pass
+(:meth:`hqp.solver.basis.BasisAlgorithm.solve`), which has every attempt."""
+
 _DAQP_INF = 1e30
 """DAQP's infinite bound."""
 
@@ -64,6 +72,12 @@ class DaqpBackend(QPBackend):
     needs_pd = True
 
     def solve(self, slot, H, g, E, e, C, lo, up):  # noqa: D102 - documented in the base
+        return self._solve(H, g, E, e, C, lo, up, ATTEMPTS)
+
+    def solve_quick(self, slot, H, g, E, e, C, lo, up):  # noqa: D102 - documented in the base
+        return self._solve(H, g, E, e, C, lo, up, QUICK_ATTEMPTS)
+
+    def _solve(self, H, g, E, e, C, lo, up, attempts):
         nv = H.shape[0]
         rows, upper, lower, sense = [], [], [], []
         if E is not None and E.shape[0]:
@@ -87,7 +101,7 @@ class DaqpBackend(QPBackend):
             sn = np.zeros(0, dtype=c_int)
         Hc = np.ascontiguousarray(H, dtype=float)
         gc = np.ascontiguousarray(g, dtype=float)
-        for primal_tol, eps_prox in ATTEMPTS:
+        for primal_tol, eps_prox in attempts:
             x, _fval, exitflag, _info = daqp.solve(
                 Hc, gc, A, bu, bl, sn, **{**SETTINGS, "primal_tol": primal_tol},
                 eps_prox=eps_prox)

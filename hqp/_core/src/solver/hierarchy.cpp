@@ -386,7 +386,9 @@ std::string Hierarchy::solve_pass(Index n, Index user_levels, bool absorb) {
           qup.tail(p) = gur;
         }
         MapV v = slot.v.vec(nq);
-        ok = slot.qp.solve(H, g, Cq, qlo, qup, v);
+        // the first pass tries DAQP's cheap attempts only: where they fail, the absorbing pass
+        // (with every attempt) is the remedy for thin feasible sets (issue 17)
+        ok = slot.qp.solve(H, g, Cq, qlo, qup, v, !absorb);
         y = v.head(r);
         if (ws && y.allFinite()) {
           // polish: the QP point's active set, solved exactly if it verifies

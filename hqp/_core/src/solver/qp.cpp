@@ -21,6 +21,8 @@ constexpr double kMargins[] = {0.0, 1e-9, 1e-7};  // bounds as given, then relax
 constexpr int kRelaxSticky = 20;
 constexpr double kEpsProx[] = {1e-6, 1e-4, 1e-2, 1.0, -1.0};
 constexpr double kPrimalTol[] = {1e-10, 1e-8};
+// a quick solve tries the first eps_prox only (hqp.solver.backends.daqp.QUICK_ATTEMPTS)
+constexpr int kEpsQuick = 1;
 constexpr int kProxMaxOuter = 100;
 constexpr int kProxMaxInner = 100;
 
@@ -74,7 +76,7 @@ void LevelQP::reserve(Index n, Index m) {
   sense_.reserve(std::size_t(m));
 }
 
-bool LevelQP::daqp(int margin_index, VecRef v) {
+bool LevelQP::daqp(int margin_index, int n_eps, VecRef v) {
   const double margin = kMargins[margin_index];
   const int n = int(n_);
   const int m = int(m_);
@@ -93,7 +95,7 @@ bool LevelQP::daqp(int margin_index, VecRef v) {
   MapV lam = lam_.vec(std::max(m, 1));
   for (int it = 0; it < QPStats::kTols; ++it) {
     const double primal_tol = kPrimalTol[it];
-    for (int ie = 0; ie < QPStats::kEps; ++ie) {
+    for (int ie = 0; ie < n_eps; ++ie) {
       const double eps_prox = kEpsProx[ie];
       const auto t0 = std::chrono::steady_clock::now();
       DAQPProblem qp;
@@ -163,7 +165,8 @@ bool LevelQP::proxqp(VecRef v) {
 }
 
 bool LevelQP::solve(const CMatRef& H, const CVecRef& g, const CMatRef& C, const CVecRef& lo,
-                    const CVecRef& up, VecRef v) {
+                    const CVecRef& up, VecRef v, bool quick) {
+  const int n_eps = quick ? kEpsQuick : QPStats::kEps;
   // normalise the cost: the minimiser does not change, DAQP's tolerances then mean the same
   // thing for levels of any scale
   n_ = H.rows();
@@ -186,15 +189,15 @@ bool LevelQP::solve(const CMatRef& H, const CVecRef& g, const CMatRef& C, const 
   if (has_in && sticky_ >= 0) {
     const int i = sticky_;
     if (--sticky_left_ <= 0) sticky_ = -1;
-    if (daqp(1 + i, v)) return true;
+    if (daqp(1 + i, n_eps, v)) return true;
     sticky_ = -1;
   }
-  bool ok = daqp(0, v);
+  bool ok = daqp(0, n_eps, v);
   if (ok || !has_in) return ok;
   MapV v2 = v2_.vec(n_);
   for (int i = 0; i < 2; ++i) {
     if (i && v.allFinite()) break;
-    if (daqp(1 + i, v2)) {
+    if (daqp(1 + i, n_eps, v2)) {
       sticky_ = i;
       sticky_left_ = kRelaxSticky;
       v = v2;
@@ -202,7 +205,7 @@ bool LevelQP::solve(const CMatRef& H, const CVecRef& g, const CMatRef& C, const 
     }
     if (!v.allFinite()) v = v2;
   }
-  if (!v.allFinite() && proxqp(v2)) {
+  if (!quick && !v.allFinite() && proxqp(v2)) {  // (no last resort in a quick solve)
     v = v2;
     return true;
   }

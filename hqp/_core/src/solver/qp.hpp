@@ -31,15 +31,17 @@ class LevelQP {
   /// call, outside this storage; the ProxQP last resort allocates).
   void reserve(Index n, Index m);
   /// min 0.5 v^T H v + g^T v  s.t.  lo <= C v <= up (C may have no rows). Returns whether
-  /// DAQP converged; v (n,) holds its point (NaN when nothing finite came back).
+  /// DAQP converged; v (n,) holds its point (NaN when nothing finite came back). `quick`:
+  /// the cheap attempts only and no ProxQP (hqp.solver.qp.solve_qp's `quick`: the hierarchy's
+  /// first pass, whose failure sends the solve to the absorbing pass).
   bool solve(const CMatRef& H, const CVecRef& g, const CMatRef& C, const CVecRef& lo,
-             const CVecRef& up, VecRef v);
+             const CVecRef& up, VecRef v, bool quick = false);
   /// Forget the relaxation memory.
   void reset() { sticky_ = -1; }
 
  private:
   using RowMap = Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>;
-  bool daqp(int margin_index, VecRef v);
+  bool daqp(int margin_index, int n_eps, VecRef v);
   bool proxqp(VecRef v);
   // fixed-capacity storage (linalg.hpp's Work); H_ and A_ hold row-major matrices
   WorkM H_, A_, g_, lo_, up_, bu_, bl_, lam_, v2_;
