@@ -4,6 +4,7 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <iterator>
 #include <limits>
 
 #include <proxsuite/proxqp/dense/dense.hpp>
@@ -23,6 +24,9 @@ constexpr double kEpsProx[] = {1e-6, 1e-4, 1e-2, 1.0, -1.0};
 constexpr double kPrimalTol[] = {1e-10, 1e-8};
 // a quick solve tries the first eps_prox only (hqp.solver.backends.daqp.QUICK_ATTEMPTS)
 constexpr int kEpsQuick = 1;
+// the statistics' layout is these tables' (qp_stats indexes attempts by their positions)
+static_assert(std::size(kMargins) == QPStats::kMargins && std::size(kPrimalTol) == QPStats::kTols &&
+              std::size(kEpsProx) == QPStats::kEps && kEpsQuick <= QPStats::kEps);
 constexpr int kProxMaxOuter = 100;
 constexpr int kProxMaxInner = 100;
 
@@ -195,7 +199,7 @@ bool LevelQP::solve(const CMatRef& H, const CVecRef& g, const CMatRef& C, const 
   bool ok = daqp(0, n_eps, v);
   if (ok || !has_in) return ok;
   MapV v2 = v2_.vec(n_);
-  for (int i = 0; i < 2; ++i) {
+  for (int i = 0; i < QPStats::kMargins - 1; ++i) {
     if (i && v.allFinite()) break;
     if (daqp(1 + i, n_eps, v2)) {
       sticky_ = i;
