@@ -389,3 +389,108 @@ def test_a_quick_level_qp_tries_the_cheap_attempts_only():
     assert not ok and not np.isfinite(v).all() and last_resort_count() == before
     solve_qp(backend, "d", np.eye(1), np.zeros(1), None, None, C1, lo1, up1)
     assert last_resort_count() == before + 1
+
+
+# -- the products over the rows' nonzero columns (RowSupport) ---------------------------------
+
+def _sparse_rows(rng, n):
+    """Rows of the shapes task rows have: dense blocks, narrow blocks, selections, zeros."""
+    parts = [
+        np.hstack([rng.normal(size=(3, n - 10)), np.zeros((3, 10))]),  # accelerations only
+        np.hstack([np.zeros((2, n - 6)), rng.normal(size=(2, 3)), np.zeros((2, 3))]),  # narrow
+        np.eye(n)[[2, 5, 9, 11]] * rng.uniform(0.5, 2.0, size=(4, 1)),  # selections
+        np.zeros((2, n)),  # empty rows
+        np.hstack([np.zeros((1, n - 2)), rng.normal(size=(1, 2))]),  # two columns
+        rng.normal(size=(2, n)),  # dense
+        np.eye(n)[[0, 1]],  # selections again
+    ]
+    return np.vstack(parts)
+
+
+def test_row_support_products_equal_the_dense_products():
+    from hqp._core import _ext
+
+    rng = np.random.default_rng(7)
+    for n in (12, 30):
+        M = _sparse_rows(rng, n)
+        Z = rng.normal(size=(n, 7))
+        out, blocks = _ext.row_support_project(M, Z)
+        np.testing.assert_allclose(out, M @ Z, rtol=0, atol=1e-13 * np.abs(M @ Z).max())
+        # dense, narrow, gather (4), zeros, two columns, dense, gather (2): 7 blocks
+        assert blocks == 7
+    dense = rng.normal(size=(5, 9))
+    out, blocks = _ext.row_support_project(dense, np.eye(9))
+    assert blocks == 1
+    np.testing.assert_array_equal(out, dense)
+    with pytest.raises(ValueError):
+        _ext.row_support_project(dense, np.eye(8))
+
+
+def test_sparse_task_rows_solve_as_the_python_basis_algorithm():
+    """Levels of sparse rows (selections, narrow blocks, zero rows) at every level, their
+    projections on the bases taking every RowSupport path: the Python oracle's solution."""
+    rng = np.random.default_rng(11)
+    n = 30
+    for _ in range(5):
+        A0 = _sparse_rows(rng, n)[:5]
+        C1 = _sparse_rows(rng, n)
+        c1 = C1 @ rng.normal(size=n)
+        A2 = _sparse_rows(rng, n)
+        levels = [Level(A=A0, b=rng.normal(size=5)),
+                  Level(C=C1, lower=c1 - 0.3, upper=c1 + 0.3),
+                  Level(A=A2, b=rng.normal(size=A2.shape[0])),
+                  Level(A=np.eye(n)[10:20], b=rng.normal(size=10))]
+        ref = HierarchicalSolver("quadprog").solve(levels)
+        sol = HierarchicalSolver("native").solve(levels)
+        np.testing.assert_allclose(sol.costs, ref.costs, rtol=1e-9, atol=1e-12)
+        np.testing.assert_allclose(sol.x, ref.x, rtol=0, atol=1e-8 * max(1.0, np.abs(ref.x).max()))
+
+
+# -- the anchor: the previous solution as the start of the least squares ----------------------
+
+def _moving_levels(rng, n, steps):
+    """A slowly moving hierarchy (a control loop's) whose solution x* moves on a circle:
+    equalities met at x*, bounds with slack around it but one row's upper bound that passes
+    through it and back, equalities, then a posture-like level towards x*."""
+    A0 = rng.normal(size=(4, n))
+    C1 = rng.normal(size=(6, n))
+    A2 = rng.normal(size=(3, n))
+    xa, xb = rng.normal(size=n), rng.normal(size=n)
+    out = []
+    for k in range(steps):
+        phase = 2 * np.pi * k / steps
+        xs = xa + 0.05 * (np.cos(phase) * xb + np.sin(phase) * xa)
+        c = C1 @ xs
+        up = c + 0.5
+        up[0] = c[0] + 0.2 * np.sin(phase) + 0.05  # at its bound over part of the circle
+        out.append([Level(A=A0, b=A0 @ xs), Level(C=C1, lower=c - 0.5, upper=up),
+                    Level(A=A2, b=A2 @ xs), Level(A=np.eye(n), b=xs)])
+    return out
+
+
+def test_the_anchor_gives_the_cold_solution_and_follows_the_python_algorithm():
+    """Warm over a moving hierarchy: each solution is the cold solve's; the native solver and
+    its Python oracle take the anchor at the same levels, and it is taken (on the bounded
+    levels with slack) and left (where a row comes to its bound)."""
+    from hqp._core import _ext
+
+    rng = np.random.default_rng(3)
+    n = 12
+    seq = _moving_levels(rng, n, 120)
+    warm_native = HierarchicalSolver("native")
+    warm_python = HierarchicalSolver("daqp")
+    native_core = _ext.Solver(1e-9, True, True)
+    taken, python_taken = [], []
+    for levels in seq:
+        a = warm_native.solve(levels)
+        b = warm_python.solve(levels)
+        cold = HierarchicalSolver("quadprog", warm_start=False).solve(levels)
+        scale = max(1.0, np.abs(cold.x).max())
+        np.testing.assert_allclose(a.x, cold.x, rtol=0, atol=1e-9 * scale)
+        np.testing.assert_allclose(b.x, cold.x, rtol=0, atol=1e-9 * scale)
+        native_core.solve(_as_rows(levels, n), n, None, True, False)
+        taken.append(native_core.anchored)
+        python_taken.append(warm_python._algorithm.anchored)
+    assert taken == python_taken
+    assert taken[0] == 0  # cold: no anchor
+    assert max(taken) >= 2 and min(taken[1:]) < max(taken)

@@ -7,7 +7,13 @@ For level ``k`` with ``A_k Z``, ``C_k Z``:
 1. Least squares: ``y = (A_k Z)^+ (b_k - A_k x0)`` by a pivoted QR (rank decided by
    ``rank_tol`` times the level's scale).
 2. If ``x0 + Z y`` satisfies the level's and the carried inequalities, the
-   level is solved: no QP.
+   level is solved: no QP. Warm, the least-squares point nearest the previous solve's
+   solution (the *anchor*, ``y + (I - P) Z^T (x_prev - x0)`` with ``P`` the projector on
+   the row space of ``A_k Z``) is tried first: a control loop's solution moves little from
+   one step to the next, so where the previous one had slack in every inequality row, this
+   point usually has it too, and the level needs no active set (an inequality-only level,
+   such as the contact or joint limits, is then solved by a projection). It is accepted
+   only strictly inside every bound (:func:`~hqp.solver.carried.inside`).
 3. Otherwise the active set of the level's previous solve (or of the least-squares
    point), verified by the optimality conditions (:mod:`hqp.solver.active_set`), or
    else a QP in the reduced coordinates and one slack per inequality row,
@@ -48,7 +54,7 @@ from hqp.solver.active_set import (
     solve_guess,
 )
 from hqp.solver.backends import QPBackend
-from hqp.solver.carried import FEAS_TOL, Carried, inequality_offsets, within
+from hqp.solver.carried import FEAS_TOL, Carried, inequality_offsets, inside, within
 from hqp.solver.level import CheckedLevel, Internal
 from hqp.solver.linalg import PivotedQR, weak_filter
 from hqp.solver.qp import QPBuffers, solve_qp
@@ -116,6 +122,8 @@ class BasisAlgorithm:
         self.buffers = QPBuffers(level_rows_first=True)
         self.needed_qp: dict[Any, tuple[int, int, int]] = {}
         self._qp_count = 0  # QPs of the current solve
+        self.anchored = 0
+        """Levels of the last solve whose point was the anchor's (:meth:`_anchored`)."""
         self._absorb = False  # this pass absorbs (see solve)
 
     def reset(self) -> None:
@@ -141,26 +149,34 @@ class BasisAlgorithm:
             per user level)``.
 
         """
+        self.memory.anchor, anchor = None, self.memory.anchor
         try:
-            return self._solve_pass(all_levels, n)
+            out = self._solve_pass(all_levels, n, anchor)
         except SolverFailure:
             first = self._qp_count
             self._absorb = True
             try:
-                x, sigmas, count, times, weak = self._solve_pass(all_levels, n)
+                x, sigmas, count, times, weak = self._solve_pass(all_levels, n, anchor)
             finally:
                 self._absorb = False
-            return x, sigmas, first + count, times, weak
+            out = x, sigmas, first + count, times, weak
+        if self.warm_start:
+            self.memory.anchor = out[0].copy()
+        return out
 
     def _solve_pass(
-        self, all_levels: list[tuple[CheckedLevel, int]], n: int
+        self, all_levels: list[tuple[CheckedLevel, int]], n: int,
+        anchor: np.ndarray | None = None,
     ) -> tuple[np.ndarray, list[float], int, list[float], list[int]]:
-        """One pass of :meth:`solve` (absorbing rows if ``self._absorb``)."""
+        """One pass of :meth:`solve` (absorbing rows if ``self._absorb``) from ``anchor``."""
+        if anchor is not None and anchor.shape != (n,):
+            anchor = None
         opt = _OptimalSet(n)
         offsets, total_in = inequality_offsets(all_levels)
         pending: list[tuple[CheckedLevel, Any, Any, Any, int]] = []
         times: list[float] = []
         self._qp_count = 0
+        self.anchored = 0
         clock = time.perf_counter
         for k, (lv, kind) in enumerate(all_levels):
             t0 = clock()
@@ -168,7 +184,7 @@ class BasisAlgorithm:
                 if kind == Internal.NONE:
                     pending.append((lv, None, None, None, 0))
             else:
-                entry = self._level(k, lv, kind, opt, offsets[k], total_in, n)
+                entry = self._level(k, lv, kind, opt, offsets[k], total_in, n, anchor)
                 if kind == Internal.NONE:
                     pending.append(entry)
             times.append(clock() - t0)
@@ -182,7 +198,8 @@ class BasisAlgorithm:
         return x, sigmas, self._qp_count, times, [entry[4] for entry in pending]
 
     def _level(self, k: int, lv: CheckedLevel, kind: int, opt: _OptimalSet, offset: int,
-               total_in: int, n: int) -> tuple[CheckedLevel, Any, Any, Any, int]:
+               total_in: int, n: int,
+               anchor: np.ndarray | None = None) -> tuple[CheckedLevel, Any, Any, Any, int]:
         """Solve level ``k`` over ``opt`` and restrict ``opt`` to its optimal set.
 
         Returns:
@@ -219,18 +236,32 @@ class BasisAlgorithm:
             deferred = (mi > 0 or has_carried) and self.needed_qp.get(k) == (
                 mi, opt.r, carried.count) and not inert
         fact = None
-        if deferred:
+        use_anchor = (ws and anchor is not None and kind == Internal.NONE and not inert
+                      and bool(mi or has_carried))
+        if deferred and not use_anchor:
             # the previous solve needed this level's inequalities: go straight
             # to its active set or its QP, skipping the least-squares point that
             # was infeasible then; the null space is computed when shrinking.
             y, null = None, None
         else:
             y, null, fact = self._least_squares(lv, kind, Ak, bk, opt)
-        xl = opt.x.copy() if y is None else opt.lift(y)
         cx = None
-        feasible = not deferred
-        if feasible:
-            feasible, cx = self._feasible(lv, xl, carried)
+        anchored = None
+        if use_anchor:
+            assert anchor is not None
+            anchored = self._anchored(lv, opt, anchor, y, null)
+        if anchored is not None:
+            self.anchored += 1
+            y, xl, cx = anchored
+            feasible = True
+            deferred = False
+        else:
+            if deferred:
+                y, null = None, None
+            xl = opt.x.copy() if y is None else opt.lift(y)
+            feasible = not deferred
+            if feasible:
+                feasible, cx = self._feasible(lv, xl, carried)
         violated = None
         absorbed = None
         qp_point = False
@@ -285,6 +316,30 @@ class BasisAlgorithm:
             fact = PivotedQR(Ak, self.rank_tol, lv.a_scale)
             return fact.null(), fact
         return None, None
+
+    @staticmethod
+    def _anchored(lv: CheckedLevel, opt: _OptimalSet, anchor: np.ndarray,
+                  y: np.ndarray | None, null: np.ndarray | None
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None] | None:
+        """Return the least-squares point nearest the anchor, if strictly inside every bound.
+
+        ``y_a = y + N N^T Z^T (anchor - x0)`` (``N``: the null space of ``A Z``; without
+        equality rows ``y = 0`` and ``N N^T = I``). Returns ``(y_a, x, C x)`` or ``None``.
+        """
+        d = opt.reduce(anchor - opt.x)
+        if y is not None and lv.m_eq:
+            assert null is not None
+            d = y + null @ (null.T @ d)
+        xa = opt.lift(d)
+        cx = None
+        if lv.m_in:
+            cx = lv.C @ xa
+            if not inside(cx, lv.lower, lv.upper, lv.lo_scale, lv.up_scale):
+                return None
+        carried = opt.carried
+        if carried.count and not carried.inside(carried.G @ xa):
+            return None
+        return d, xa, cx
 
     # 2. feasibility check ---------------------------------------------------
     @staticmethod

@@ -42,6 +42,18 @@ def within(
     return bool((cx >= lo - FEAS_TOL * lo_s).all() and (cx <= up + FEAS_TOL * up_s).all())
 
 
+def inside(
+    cx: np.ndarray, lo: np.ndarray, up: np.ndarray, lo_s: np.ndarray, up_s: np.ndarray
+) -> bool:
+    """Whether ``lo + tol <= cx <= up - tol`` with ``tol = FEAS_TOL * scale`` (strictly inside).
+
+    The anchor's test (:meth:`hqp.solver.basis.BasisAlgorithm._anchored`): a point within the
+    feasibility band of :func:`within` but not inside it (a row at its bound to rounding) is
+    left to the active set, whose point does not depend on where the least squares started.
+    """
+    return bool((cx >= lo + FEAS_TOL * lo_s).all() and (cx <= up - FEAS_TOL * up_s).all())
+
+
 def inequality_offsets(all_levels: Sequence[tuple[Any, Any]]) -> tuple[list[int], int]:
     """Index of each level's first inequality row among all of the hierarchy's, and their count."""
     offsets = []
@@ -80,6 +92,10 @@ class Carried:
     def contains(self, gx: np.ndarray) -> bool:
         """Whether ``G x`` (given as ``gx``) is within the bounds (:data:`FEAS_TOL`)."""
         return within(gx, self.gl, self.gu, self.gls, self.gus)
+
+    def inside(self, gx: np.ndarray) -> bool:
+        """Whether ``G x`` (given as ``gx``) is strictly inside the bounds (:func:`inside`)."""
+        return inside(gx, self.gl, self.gu, self.gls, self.gus)
 
     def shifted(self, G: np.ndarray, gx: np.ndarray) -> CarriedRows:
         """Return the rows ``G`` (``self.G`` projected) with the bounds moved by ``-gx``."""

@@ -36,12 +36,15 @@ class WarmStart:
         self.guesses: dict[Any, tuple[np.ndarray, np.ndarray]] = {}
         self.points: dict[Any, np.ndarray] = {}
         self.skip: dict[Any, int] = {}
+        self.anchor: np.ndarray | None = None
+        """The last solve's solution: where the least squares of the next one start."""
 
     def reset(self) -> None:
         """Forget everything (the next solves start cold)."""
         self.guesses.clear()
         self.points.clear()
         self.skip.clear()
+        self.anchor = None
 
     def use(self, slot: Any) -> bool:
         """Whether the slot uses the warm start in this solve (see :data:`WARM_SKIP`)."""

@@ -126,6 +126,7 @@ class PySolver {
   }
 
   void reset() { hierarchy_.reset(); }
+  int anchored() const { return hierarchy_.anchored(); }
 
  private:
   std::string run(Index n, Index L, bool forbid_malloc) {
@@ -156,7 +157,23 @@ inline void bind_solver(nb::module_& m) {
            nb::arg("compute_sigma"))
       .def("solve", &PySolver::solve, nb::arg("levels"), nb::arg("n"), nb::arg("final").none(),
            nb::arg("validate"), nb::arg("forbid_malloc") = false)
-      .def("reset", &PySolver::reset);
+      .def("reset", &PySolver::reset)
+      .def_prop_ro("anchored", &PySolver::anchored,
+                   "Levels of the last solve whose point was the anchor's (the previous "
+                   "solution's least-squares point, strictly inside every bound).");
+  m.def(
+      "row_support_project",
+      [](const Eigen::MatrixXd& M, const Eigen::MatrixXd& Z) {
+        if (M.cols() != Z.rows()) throw std::invalid_argument("M (m, c) and Z (c, r)");
+        RowSupport support;
+        support.compute(M);
+        Eigen::MatrixXd out(M.rows(), Z.cols());
+        MapM view(out.data(), out.rows(), out.cols());
+        support.project(M, CMapM(Z.data(), Z.rows(), Z.cols()), view);
+        return nb::make_tuple(out, support.blocks());
+      },
+      nb::arg("M"), nb::arg("Z"),
+      "M Z through the solver's RowSupport (tests): (product, number of row blocks).");
   m.def(
       "level_qp",
       [](const Eigen::MatrixXd& H, const Eigen::VectorXd& g, const Eigen::MatrixXd& C,

@@ -241,6 +241,14 @@ inline void bind_step(nb::module_& m) {
           },
           "(cost, sigma_min) of each built level of the last step.")
       .def(
+          "level_seconds",
+          [](const NativeStep& s) {
+            Eigen::VectorXd out(s.level_count());
+            for (int k = 0; k < s.level_count(); ++k) out[k] = s.result(k).seconds;
+            return out;
+          },
+          "Time spent on each built level in the last step's solve [s].")
+      .def(
           "result",
           [](const NativeStep& s, int k) {
             if (k < 0 || k >= s.level_count()) throw std::invalid_argument("no such level");

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstring>
 #include <cmath>
 #include <limits>
 
@@ -17,6 +18,17 @@ bool within(const CVecRef& cx, const CVecRef& lo, const CVecRef& up, const CVecR
             const CVecRef& ups) {
   for (Index i = 0; i < cx.size(); ++i) {
     if (cx(i) < lo(i) - kFeasTol * los(i) || cx(i) > up(i) + kFeasTol * ups(i)) return false;
+  }
+  return true;
+}
+
+// Strictly inside [lo, up] by kFeasTol (times the bounds' scales): the anchor's test. A
+// point within the feasibility band but not inside it (a row at its bound to rounding) is
+// left to the active set, whose point does not depend on where the least squares started.
+bool inside(const CVecRef& cx, const CVecRef& lo, const CVecRef& up, const CVecRef& los,
+            const CVecRef& ups) {
+  for (Index i = 0; i < cx.size(); ++i) {
+    if (!(cx(i) >= lo(i) + kFeasTol * los(i) && cx(i) <= up(i) - kFeasTol * ups(i))) return false;
   }
   return true;
 }
@@ -57,6 +69,8 @@ void LevelData::finish() {
   }
   a_scale = A.size() ? A.cwiseAbs().maxCoeff() : 0.0;
   c_scale = C.size() ? C.cwiseAbs().maxCoeff() : 0.0;
+  a_support.compute(A);
+  c_support.compute(C);
 }
 
 void Slot::reserve(Index n, Index me, Index mi, Index P, Index total_in) {
@@ -82,8 +96,8 @@ void Slot::reserve(Index n, Index me, Index mi, Index P, Index total_in) {
   w.reserve(P);
   absorbed.reserve(P);
   svals.reserve(std::min(me, n));
-  fact.reserve(me, n);
-  null_qr.reserve(me + mi + P, n);
+  fact.reserve(me, n, n);
+  null_qr.reserve(me + mi + P, n, n);
   as.reserve(me, mi, P, n, n, kMaxIter);
   qp.reserve(nq, mi + P);
   sv.reserve(me + mi, n);
@@ -92,6 +106,8 @@ void Slot::reserve(Index n, Index me, Index mi, Index P, Index total_in) {
   xl.resize(n);
   tmp.resize(n);
   zref.resize(n);
+  xc.resize(n);
+  dc.reserve(n);
   cx.resize(mi);
   cx0.resize(mi);
   lo_r.resize(mi);
@@ -132,6 +148,7 @@ void Hierarchy::resize_levels(std::size_t count) {
 }
 
 void Hierarchy::reset() {
+  has_anchor_ = false;
   for (Slot& slot : slots_) {
     slot.has_guess = false;
     slot.has_point = false;
@@ -151,10 +168,17 @@ std::string Hierarchy::solve(Index n, Index user_levels) {
   // a level whose QP fails (a thin feasible set) sends the solve to a second pass that
   // absorbs the rows active over the optimal sets above (BasisAlgorithm.solve)
   std::string err = solve_pass(n, user_levels, false);
-  if (err.empty()) return err;
-  const int first = qp_count_;
-  err = solve_pass(n, user_levels, true);
-  qp_count_ += first;
+  if (!err.empty()) {
+    const int first = qp_count_;
+    err = solve_pass(n, user_levels, true);
+    qp_count_ += first;
+  }
+  if (err.empty() && settings_.warm_start) {
+    anchor_ = x_;
+    has_anchor_ = true;
+  } else {
+    has_anchor_ = false;
+  }
   return err;
 }
 
@@ -168,6 +192,7 @@ std::string Hierarchy::solve_pass(Index n, Index user_levels, bool absorb) {
     n_ = n;
   }
   qp_count_ = 0;
+  anchored_ = 0;
   final_seconds_ = 0.0;
   x_.resize(n);
   x_.setZero();
@@ -223,7 +248,7 @@ std::string Hierarchy::solve_pass(Index n, Index user_levels, bool absorb) {
     auto gus = gus_.head(p);
     MapM Ak = slot.Ak.mat(me, r);
     if (Z)
-      Ak.noalias() = lv.A * Zm;
+      lv.a_support.project(lv.A, Zm, Ak);
     else
       Ak = lv.A;
     slot.projected = true;
@@ -262,7 +287,11 @@ std::string Hierarchy::solve_pass(Index n, Index user_levels, bool absorb) {
     bool y_none = true;
     Null null = Null::kNone;
     MapV y = slot.y.vec(r);
-    if (deferred) {
+    // the previous solve's solution, brought into this optimal set, as the start of the
+    // least squares (BasisAlgorithm._anchored): strictly inside every bound, no active set
+    const bool anchor = ws && has_anchor_ && lv.kind == LevelKind::kUser && !inert &&
+                        (mi > 0 || carried);
+    if (deferred && !anchor) {
       // the previous solve needed this level's inequalities: straight to its active set
     } else if (lv.kind == LevelKind::kNorm) {
       if (Z)
@@ -287,11 +316,60 @@ std::string Hierarchy::solve_pass(Index n, Index user_levels, bool absorb) {
     }
     // 2. does the least-squares point satisfy the inequalities?
     bool feasible = !deferred;
-    if (mi && feasible) {
+    bool anchored = false;
+    if (anchor) {
+      // y_c = y + (I - P) Z^T (anchor - x): the least-squares point nearest the anchor
+      MapV d = slot.dc.vec(r);
+      slot.tmp = anchor_ - x_;
+      if (Z)
+        d.noalias() = Zm.transpose() * slot.tmp;
+      else
+        d = slot.tmp;
+      if (!y_none && me) {
+        slot.fact.apply_qt(d);
+        d.head(std::min<Index>(slot.fact.rank(), r)).setZero();
+        slot.fact.apply_q(d);
+        d += y;
+      }
+      slot.xc = x_;
+      if (Z)
+        slot.xc.noalias() += Zm * d;
+      else
+        slot.xc += d;
+      bool ok = true;
+      if (mi) {
+        slot.cx.noalias() = lv.C * slot.xc;
+        ok = inside(slot.cx, lv.lo, lv.up, lv.los, lv.ups);
+      }
+      if (ok && carried) {
+        MapV gxl = slot.gxl.vec(p);
+        gxl.noalias() = G * slot.xc;
+        ok = inside(gxl, gl, gu, gls, gus);
+      }
+      if (ok) {
+        anchored = true;
+        ++anchored_;
+        slot.xl = slot.xc;
+        y = d;
+        y_none = false;
+        feasible = true;
+        if (deferred) {
+          deferred = false;
+          if (me) null = Null::kFact;
+        }
+      } else if (deferred) {
+        // as without the anchor: straight to the active set, the null space decided below
+        null = Null::kNone;
+        slot.xl = x_;
+      }
+    }
+    if (anchored) {
+      // (checked above)
+    } else if (mi && feasible) {
       slot.cx.noalias() = lv.C * slot.xl;
       feasible = within(slot.cx, lv.lo, lv.up, lv.los, lv.ups);
     }
-    if (feasible && carried) {
+    if (feasible && carried && !anchored) {
       MapV gxl = slot.gxl.vec(p);
       gxl.noalias() = G * slot.xl;
       feasible = within(gxl, gl, gu, gls, gus);
@@ -304,7 +382,7 @@ std::string Hierarchy::solve_pass(Index n, Index user_levels, bool absorb) {
     if (!feasible) {
       MapM Ck = slot.Ck.mat(mi, r);
       if (Z)
-        Ck.noalias() = lv.C * Zm;
+        lv.c_support.project(lv.C, Zm, Ck);
       else
         Ck = lv.C;
       MapV gx = slot.gx.vec(p);
@@ -487,7 +565,7 @@ std::string Hierarchy::solve_pass(Index n, Index user_levels, bool absorb) {
       if (lv.kind == LevelKind::kNorm) {
         null = Null::kEmpty;
       } else if (me) {
-        slot.fact.compute(Ak, rank_tol, lv.a_scale);
+        if (!slot.has_fact) slot.fact.compute(Ak, rank_tol, lv.a_scale);
         slot.has_fact = true;
         null = Null::kFact;
       } else {
@@ -500,12 +578,21 @@ std::string Hierarchy::solve_pass(Index n, Index user_levels, bool absorb) {
         slot.Z.mat(n, 0);
       } else {
         PivotedQR& f = null == Null::kFact ? slot.fact : slot.null_qr;
-        const CMapM N = f.null();
-        MapM Zn = slot.Z.mat(n, N.cols());
-        if (Z)
-          Zn.noalias() = Zm * N;
-        else
+        if (Z) {
+          // Z N = (Z Q)[:, rank:]: the reflectors applied to Z from the right, cheaper than
+          // forming N and multiplying (n r rank against n r (r - rank) products)
+          const Index c = r - f.rank();
+          MapM W = slot.Z.mat(n, r);
+          W = Zm;
+          f.apply_q_right(W);
+          if (c < r && c > 0)
+            std::memmove(slot.Z.data(), slot.Z.data() + n * (r - c), sizeof(double) * n * c);
+          slot.Z.mat(n, c);
+        } else {
+          const CMapM N = f.null();
+          MapM Zn = slot.Z.mat(n, N.cols());
           Zn = N;
+        }
       }
       Z = &slot.Z;
       r = slot.Z.cols();

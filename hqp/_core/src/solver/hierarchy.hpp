@@ -42,6 +42,7 @@ struct LevelData {
   double a_scale = 0.0, c_scale = 0.0;
   double weak = 0.0;  ///< the level's weak_threshold (0: no filtering)
   LevelKind kind = LevelKind::kUser;
+  RowSupport a_support, c_support;  ///< where the rows of A and C are nonzero (finish())
   /// Scales and flags from A, b, C, lo, up (the fields of hqp.solver.level.CheckedLevel).
   void finish();
   /// The final minimum-norm level over n variables (identity rows, zero target).
@@ -71,11 +72,12 @@ struct Slot {
   bool needed_qp = false;
   Index nq_mi = -1, nq_r = -1, nq_p = -1;
   // workspace: sizes fixed by the level shapes (me, mi, n) ...
-  VectorXd bk, xl, cx, cx0, lo_r, up_r, tmp, zref;
+  VectorXd bk, xl, cx, cx0, lo_r, up_r, tmp, zref, xc;
   IVec s, violated;
   // ... and fixed-capacity storage for the shapes that vary from solve to solve (the basis
   // size r, the carried rows p, the QP's r + mi)
   WorkM Ak, Ck, Gk, Z, E, H, Cq, Msig;
+  WorkM dc;  // the anchor's displacement in the reduced coordinates (r,)
   WorkM y, gx, glr, gur, ref, g, qlo, qup, v, gxl, svals;
   WorkI w, absorbed;
   PivotedQR fact, null_qr;
@@ -107,6 +109,8 @@ class Hierarchy {
   const VectorXd& x() const { return x_; }
   const std::vector<LevelResult>& results() const { return results_; }
   int qp_count() const { return qp_count_; }
+  /// Levels of the last solve whose point was the anchor's (BasisAlgorithm.anchored).
+  int anchored() const { return anchored_; }
   double final_seconds() const { return final_seconds_; }
   const Settings& settings() const { return settings_; }
 
@@ -124,11 +128,14 @@ class Hierarchy {
   std::vector<Slot> slots_;
   std::vector<LevelResult> results_;
   VectorXd x_;
+  VectorXd anchor_;  // the last solve's x (the least squares' start, warm)
+  bool has_anchor_ = false;
   MatrixXd G_;
   VectorXd gl_, gu_, gls_, gus_, gtmp_;
   IVec gid_;
   std::vector<Index> shapes_;  // n, then (me, mi) per level, of the last solve
   int qp_count_ = 0;
+  int anchored_ = 0;
   double final_seconds_ = 0.0;
   Index n_ = -1;
 };

@@ -17,6 +17,73 @@ void set_malloc_allowed(bool allowed) {
 }
 
 // ---------------------------------------------------------------------------------------
+// RowSupport
+
+void RowSupport::compute(const CMatRef& M) {
+  const Index m = M.rows(), c = M.cols();
+  reserve(m);
+  blocks_.clear();
+  // first and last nonzero column of each row, column by column (M is column-major)
+  MapI first = col_.vec(m);
+  MapI last = last_.vec(m);
+  first.setConstant(-1);
+  last.setConstant(-1);
+  for (Index j = 0; j < c; ++j) {
+    const double* colj = M.col(j).data();
+    for (Index i = 0; i < m; ++i) {
+      if (colj[i] != 0.0) {
+        if (first(i) < 0) first(i) = int(j);
+        last(i) = int(j);
+      }
+    }
+  }
+  for (Index i = 0; i < m; ++i) {
+    const Index f = first(i), l = last(i);
+    const bool single = f >= 0 && f == l;
+    if (!blocks_.empty()) {
+      Block& b = blocks_.back();
+      if (single && b.gather) {
+        ++b.nr;
+        continue;
+      }
+      if (!b.gather && !single && f == first(i - 1) && l == last(i - 1)) {
+        ++b.nr;
+        continue;
+      }
+    }
+    if (single) {
+      blocks_.push_back({i, 1, f, 1, true});
+    } else {
+      blocks_.push_back({i, 1, f < 0 ? 0 : f, f < 0 ? 0 : l - f + 1, false});
+    }
+  }
+}
+
+void RowSupport::project(const CMatRef& M, const CMapM& Z, MapM out) const {
+  const Eigen::Map<const IVec> col = col_.vec();
+  for (const Block& b : blocks_) {
+    if (b.gather) {
+      for (Index i = b.r0; i < b.r0 + b.nr; ++i) {
+        out.row(i) = M(i, col(i)) * Z.row(col(i));
+      }
+    } else if (b.nc == 0) {
+      out.middleRows(b.r0, b.nr).setZero();
+    } else if (b.nc <= 4) {
+      // a few columns: scaled rows of Z summed (no kernel set-up for a tiny product)
+      for (Index i = b.r0; i < b.r0 + b.nr; ++i) {
+        out.row(i) = M(i, b.c0) * Z.row(b.c0);
+        for (Index j = b.c0 + 1; j < b.c0 + b.nc; ++j) {
+          if (M(i, j) != 0.0) out.row(i) += M(i, j) * Z.row(j);
+        }
+      }
+    } else {
+      out.middleRows(b.r0, b.nr).noalias() =
+          M.block(b.r0, b.c0, b.nr, b.nc) * Z.middleRows(b.c0, b.nc);
+    }
+  }
+}
+
+// ---------------------------------------------------------------------------------------
 // ColPivQR: Eigen 3.4's ColPivHouseholderQR::computeInPlace, on this object's storage
 
 void ColPivQR::reserve(Index rows, Index cols) {

@@ -11,6 +11,8 @@
 #include <Eigen/QR>
 #include <Eigen/SVD>
 
+#include <vector>
+
 namespace hqp {
 
 using Eigen::Index;
@@ -79,6 +81,36 @@ class Work {
 
 using WorkM = Work<double>;
 using WorkI = Work<int>;
+
+/// Where the nonzero entries of a matrix's rows lie (M (m, c)), for products M Z with a
+/// dense Z (c, r) that skip the zero columns: consecutive rows whose nonzero entries span the
+/// same columns form a block (a product of that block with those rows of Z), consecutive
+/// rows of one nonzero entry each a gather block (each row a scaled row of Z). Task rows are
+/// mostly so: a posture or joint-limit row selects one joint, a contact limit touches its
+/// contact's force, a frame task the accelerations and not the forces. The result is M Z
+/// up to the summation order of its nonzero terms (rounding).
+class RowSupport {
+ public:
+  void reserve(Index m) {
+    blocks_.reserve(std::size_t(m) + 1);
+    col_.reserve(m);
+    last_.reserve(m);
+  }
+  /// Scan M (called when M's entries change; allocates only beyond reserve(M.rows())).
+  void compute(const CMatRef& M);
+  /// out (m, r) = M Z for Z (c, r); M as given to compute().
+  void project(const CMatRef& M, const CMapM& Z, MapM out) const;
+  Index blocks() const { return Index(blocks_.size()); }
+
+ private:
+  struct Block {
+    Index r0, nr, c0, nc;
+    bool gather;
+  };
+  std::vector<Block> blocks_;
+  WorkI col_;   // each row's first nonzero column (a gather row's one nonzero entry)
+  WorkI last_;  // each row's last nonzero column
+};
 
 /// Householder QR with column pivoting A P = Q R, in place on fixed-capacity storage: the
 /// steps of Eigen's ColPivHouseholderQR::computeInPlace (the same Householder and norm
