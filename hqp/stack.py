@@ -96,6 +96,10 @@ class _TaskEntry:
     offsets: tuple[np.ndarray | None, np.ndarray | None, np.ndarray | None] | None = None
 
 
+def _entry_level(entry: _TaskEntry) -> int:
+    return entry.level
+
+
 @dataclass
 class _ContactEntry:
     name: str
@@ -306,7 +310,11 @@ class Stack:
     @property
     def tasks(self) -> tuple[Task, ...]:
         """Every task of the stack (contact tasks included), in level order."""
-        return tuple(e.task for e in sorted(self._tasks, key=lambda e: e.level))
+        return tuple(e.task for e in sorted(self._tasks, key=_entry_level))
+
+    def task_levels(self) -> tuple[tuple[int, Task], ...]:
+        """Every task with its level index, in level order (as :attr:`tasks`)."""
+        return tuple((e.level, e.task) for e in sorted(self._tasks, key=_entry_level))
 
     def task(self, name: str) -> Task:
         """Return a task by name.
@@ -684,6 +692,15 @@ class Stack:
             _check_columns(rows, n, entry.task.where())
             if entry.offsets is None or not _offsets_fit(entry.offsets, rows):
                 entry.offsets = _ramp_offsets(rows, x_prev)
+
+    def advance_steady(self) -> None:
+        """:meth:`advance` for a steady stack (:meth:`steady` true at this step's time).
+
+        Then no contact unloads or is released, no task ramps in or waits for its goal
+        ramp: advancing only tells the contact-aware tasks the active contacts (what the
+        native step, which builds no Python rows, needs of it).
+        """
+        self._set_active_frames(self._active_frames())
 
     def build(self, model: RobotModel, layout: Layout, dt: float, t: float) -> BuiltStack:
         """Build the solver levels of one control step (no solve, no change of the stack).

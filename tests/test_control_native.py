@@ -363,3 +363,38 @@ def test_a_failed_native_solve_is_solved_on_the_fallback_backend(monkeypatch):
     t2, state2 = t + 0.001, states[3][1]
     assert not nat.step(state2, t2).report.notes  # the next step is native again, quiet
     assert nat.native.steps == steps + 1
+
+
+def _change_posture_gain(c):
+    c.task("posture").reference = type(c.task("posture").reference)(
+        10.0, 2 * np.sqrt(10.0), np.inf, np.inf)
+
+
+_CHANGES = {
+    "weight": lambda c: setattr(c.task("trunk"), "weight", 7.0),
+    "gains": _change_posture_gain,
+    "friction": lambda c: setattr(c.task("left_foot"), "mu", 0.3),
+    "torque_limits_in_place": lambda c: c.task("torque_limits").tau_max.__imul__(0.7),
+    "torque_scale": lambda c: setattr(c.task("torque_limits"), "scale", 0.8),
+    "joint_limit_margin": lambda c: setattr(c.task("joint_limits"), "position_margin", 0.05),
+}
+
+
+@pytest.mark.parametrize("change", sorted(_CHANGES))
+def test_a_parameter_changed_between_steps_rebuilds_the_native_step(change):
+    """A task parameter set between two steps (by attribute, in place) reaches the kernels:
+    the next native step equals the Python step with the same change."""
+    robot, nat, py = _pair("g1", "residuals")
+    for c in (nat, py):  # an array of the task's own, changed in place below
+        c.task("torque_limits").tau_max = c.model.tau_max.copy()
+    states = list(_states(robot, nat.model, 8, seed=3))
+    for t, state in states[:5]:
+        nat.step(state, t), py.step(state, t)
+    mirror = nat.native.mirror
+    for c in (nat, py):
+        _CHANGES[change](c)
+    for t, state in states[5:]:
+        a, b = nat.step(state, t), py.step(state, t)
+        _same_command(a, b, f"{change} t={t}")
+    assert nat.native.mirror is not mirror  # rebuilt
+    assert a.timings["rows"] == 0.0  # and the steps after the change ran natively

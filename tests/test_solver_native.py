@@ -494,3 +494,63 @@ def test_the_anchor_gives_the_cold_solution_and_follows_the_python_algorithm():
     assert taken == python_taken
     assert taken[0] == 0  # cold: no anchor
     assert max(taken) >= 2 and min(taken[1:]) < max(taken)
+
+
+def _cpu_has_avx2_fma() -> bool:
+    try:
+        flags = Path("/proc/cpuinfo").read_text().split()
+    except OSError:
+        return False
+    return "avx2" in flags and "fma" in flags
+
+
+def test_the_solver_units_use_avx2_and_fma_where_the_machine_has_them():
+    """HQP_SIMD=AUTO (the default build): the solver's units are compiled with AVX2 and FMA
+    exactly where the building machine runs them (this one: the package is built here)."""
+    from hqp._core import _ext, _ext_checked
+
+    assert _ext.solver_simd() == _ext_checked.solver_simd()
+    option = _ext.solver_simd_option()
+    if option == "AUTO":
+        expected = "avx2+fma" if _cpu_has_avx2_fma() else "sse2"
+        assert _ext.solver_simd() == expected
+    else:
+        assert _ext.solver_simd() == ("avx2+fma" if option == "ON" else "sse2")
+
+
+def test_matrices_pass_between_the_avx_and_the_plain_units():
+    """Levels filled by the step's units (no AVX) and resized by the solver's (AVX): heap
+    blocks allocated in one unit and freed in the other, shapes changing, objects dropped
+    and collected (a 32-byte aligned block freed by free() aborted the interpreter)."""
+    import subprocess
+    import sys
+
+    code = """
+import gc
+import numpy as np
+from hqp import robots
+from hqp.control.presets import standing_controller
+from hqp.model import RobotState
+from hqp.solver import HierarchicalSolver, Level
+rng = np.random.default_rng(0)
+for name in ("g1", "talos"):
+    robot = robots.load(name)
+    for _ in range(2):
+        c = standing_controller(robot, diagnostics="residuals")
+        for k in range(6):
+            c.step(RobotState(robot.q_standing.copy(), np.zeros(c.model.nv)), 1e-3 * k)
+        del c
+        gc.collect()
+for n in (5, 9, 14, 6):
+    s = HierarchicalSolver("native")
+    for m in (2, 4, 3):
+        s.solve([Level(A=rng.normal(size=(m, n)), b=rng.normal(size=m)),
+                 Level(C=rng.normal(size=(m + 1, n)), lower=-np.ones(m + 1), upper=np.ones(m + 1))])
+    del s
+    gc.collect()
+print("clean")
+"""
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=300)
+    assert run.returncode == 0, run.stderr[-2000:]
+    assert run.stdout.strip().endswith("clean")

@@ -10,7 +10,7 @@ indicating infeasibility").
 from __future__ import annotations
 
 import enum
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -68,7 +68,6 @@ class TaskStatus:
         return self.status in (Feasibility.SATISFIED, Feasibility.INACTIVE)
 
 
-@dataclass(frozen=True)
 class FeasibilityReport:
     """Per-task feasibility of one control step (the seed's feasibility flags).
 
@@ -81,13 +80,67 @@ class FeasibilityReport:
         notes: Human-readable notes (why safe mode, which change is being blended, ...).
         level_costs: Optimal cost of each level (as reported by the solver).
 
+    A report made from a step's raw results (``statuses=``, a function of none, as the
+    native step makes it: residuals, singular values and costs computed in the step) builds
+    its :class:`TaskStatus` objects when :attr:`tasks` is first read. Immutable; equal when
+    its fields are.
+
     """
 
-    tasks: tuple[TaskStatus, ...] = ()
-    safe_mode: bool = False
-    strictness_suspended: bool = False
-    notes: tuple[str, ...] = ()
-    level_costs: tuple[float, ...] = ()
+    __slots__ = ("_tasks", "_statuses", "safe_mode", "strictness_suspended", "notes",
+                 "_level_costs")
+
+    def __init__(self, tasks: Sequence[TaskStatus] = (), safe_mode: bool = False,
+                 strictness_suspended: bool = False, notes: Sequence[str] = (),
+                 level_costs: Sequence[float] = (), *,
+                 statuses: Callable[[], tuple[TaskStatus, ...]] | None = None) -> None:
+        object.__setattr__(self, "_tasks", None if statuses is not None else tuple(tasks))
+        object.__setattr__(self, "_statuses", statuses)
+        object.__setattr__(self, "safe_mode", bool(safe_mode))
+        object.__setattr__(self, "strictness_suspended", bool(strictness_suspended))
+        object.__setattr__(self, "notes", tuple(notes))
+        object.__setattr__(self, "_level_costs", level_costs)
+
+    def __setattr__(self, name: str, value: object) -> None:
+        raise AttributeError(f"FeasibilityReport is immutable (cannot set {name!r})")
+
+    @property
+    def tasks(self) -> tuple[TaskStatus, ...]:
+        """One status per task of the stack, in level order."""
+        if self._tasks is None:
+            assert self._statuses is not None
+            object.__setattr__(self, "_tasks", tuple(self._statuses()))
+            object.__setattr__(self, "_statuses", None)
+        return self._tasks
+
+    @property
+    def level_costs(self) -> tuple[float, ...]:
+        """Optimal cost of each level (as reported by the solver)."""
+        costs = self._level_costs
+        if not isinstance(costs, tuple):
+            costs = tuple(float(c) for c in costs)
+            object.__setattr__(self, "_level_costs", costs)
+        return costs
+
+    def _fields(self) -> tuple[object, ...]:
+        return (self.tasks, self.safe_mode, self.strictness_suspended, self.notes,
+                self.level_costs)
+
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, FeasibilityReport):
+            return NotImplemented
+        return self._fields() == other._fields()
+
+    def __hash__(self) -> int:
+        return hash(self._fields())
+
+    def __repr__(self) -> str:
+        return (f"FeasibilityReport(tasks={self.tasks!r}, safe_mode={self.safe_mode!r}, "
+                f"strictness_suspended={self.strictness_suspended!r}, notes={self.notes!r}, "
+                f"level_costs={self.level_costs!r})")
+
+    def __reduce__(self) -> tuple[object, ...]:
+        return (FeasibilityReport, self._fields())
 
     def __getitem__(self, name: str) -> TaskStatus:
         """Return the status of a task by name.

@@ -26,6 +26,8 @@ computed).
 from __future__ import annotations
 
 import math
+import operator
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -56,6 +58,7 @@ from hqp.tasks.pose import PoseTask
 from hqp.tasks.position import PositionTask
 from hqp.tasks.posture import PostureTask
 from hqp.tasks.torque_limits import TorqueLimits
+from hqp.tasks.tracking import TrackingTask
 
 RATE_TASK = "torque_rate"
 """Name of the servo's torque-rate level's rows in the report (``WholeBodyController``)."""
@@ -138,7 +141,15 @@ class NativeStepMirror:
         if self._rate_at is not None:
             self._rate_handle = self.step_core.add_torque_rate(self._rate_at, 1.0)
             self._names.append(RATE_TASK)
-        self._model_errors = [t for t in stack.tasks if isinstance(t, (Contact, JointLimits))]
+        model_errors = [t for t in stack.tasks if isinstance(t, (Contact, JointLimits))]
+        # the tasks whose errors the step leaves in its kernels (a handle) or in the model
+        self._error_tasks = [task for _h, task, _k in self._goals] + model_errors
+        self._error_handles: dict[int, int | None] = {
+            id(task): handle for handle, task, _k in self._goals}
+        self._error_handles.update((id(task), None) for task in model_errors)
+        self._contact_tasks = [t for t in stack.tasks if isinstance(t, Contact)]
+        self._pushed_goals: list[Any] = [None] * len(self._goals)  # the samples pushed last
+        self._braking_keys: list[Any] = [None] * len(self._braking)
         self._pushed: dict[str, tuple[bool, Any]] = {
             t.name: (t.active, None if t.reference is None else t.reference.homogeneous.copy())
             for t in stack.tasks if isinstance(t, Contact)}
@@ -333,12 +344,19 @@ class NativeStepMirror:
 
         """
         s = self.step_core
-        for handle, task, kind in self._goals:
+        pushed = self._pushed_goals
+        for i, (handle, task, kind) in enumerate(self._goals):
             if isinstance(task, CentroidalMomentumTask):
                 g = task._goal if task.trajectory is None else task.trajectory.sample(t)
+                if g is pushed[i]:
+                    continue
+                pushed[i] = g
                 s.set_goal(handle, g.position, g.velocity, np.zeros_like(g.velocity))
                 continue
             g = task.goal_at(t)
+            if g is pushed[i] and not isinstance(task, HybridTask):
+                continue  # the same (read-only) goal as the last push: in the kernel already
+            pushed[i] = g
             if kind == "orientation":
                 s.set_orientation_goal(handle, g.position, g.velocity, g.acceleration)
             elif kind == "pose":
@@ -347,7 +365,16 @@ class NativeStepMirror:
                     s.set_force(handle, task._force)
             else:
                 s.set_goal(handle, g.position, g.velocity, g.acceleration)
-        for handle, task in self._braking:
+        for i, (handle, task) in enumerate(self._braking):
+            # recomputed where what it depends on changed: the supports, the bound's arrays
+            qdd = task.qdd_max
+            key = (task._active_frames, task.airborne_braking, task.support_braking,
+                   None if qdd is None else qdd.tobytes(), task.braking
+                   if task.braking is None or np.isscalar(task.braking)
+                   else np.asarray(task.braking).tobytes())
+            if key == self._braking_keys[i]:
+                continue
+            self._braking_keys[i] = key
             s.set_braking(handle, np.asarray(task.braking_deceleration(self.model), dtype=float))
         for handle, task, rows in self._internal:
             s.set_internal_goal(handle, task.goal_of(rows))
@@ -366,9 +393,7 @@ class NativeStepMirror:
             Python step captures it at its next rows); True otherwise.
 
         """
-        for task in self.stack.tasks:
-            if not isinstance(task, Contact):
-                continue
+        for task in self._contact_tasks:
             if task.active and task.reference is None and task.kp > 0.0:
                 return False
             ref = None if task.reference is None else task.reference.homogeneous
@@ -398,23 +423,37 @@ class NativeStepMirror:
         self.step_core.step(q, v, self.dt)
         return self.step_core.x, self.step_core.tau
 
-    def record_errors(self) -> None:
+    def record_errors(self, source: ErrorSource | None = None) -> None:
         """Give each task the error of the last native step (what ``Task.error()`` returns).
 
         From its kernel; for a contact and the joint limits, from the Python model at the
-        state (logs and behaviors read them).
+        state (logs and behaviors read them). With a ``source``, a task's error is fetched
+        when the task's ``error()`` is first called (``Task._fetch_error``; a control loop
+        that reads none pays for none); the distances' errors (and their pair names, an
+        attribute) are recorded at once.
         """
         core = self.step_core
-        for handle, task, _kind in self._goals:
-            e, rate = core.kernel_error(handle)
-            task.record_error(rate if isinstance(task, CentroidalMomentumTask) else e)
         for handle, task, _obstacles, names in self._distances:
             task.record_error(core.margins(handle), names)
-        for task in self._model_errors:
-            task.record_error(self.model)
+        if source is not None:
+            for task in self._error_tasks:
+                task._error_source = source
+            return
+        for task in self._error_tasks:
+            self.record_error(task)
 
-    def report(self, diagnostics: Diagnostics) -> tuple[tuple[TaskStatus, ...],
-                                                     tuple[float, ...], BuiltStack | None]:
+    def record_error(self, task: Any) -> None:
+        """Record one task's error of the last native step (see :meth:`record_errors`)."""
+        handle = self._error_handles[id(task)]
+        if handle is None:
+            task.record_error(self.model)
+            return
+        e, rate = self.step_core.kernel_error(handle)
+        task.record_error(rate if isinstance(task, CentroidalMomentumTask) else e)
+
+    def report(self, diagnostics: Diagnostics) -> tuple[
+            tuple[TaskStatus, ...] | Callable[[], tuple[TaskStatus, ...]], np.ndarray,
+            BuiltStack | None]:
         """Return the last step's task statuses, level costs and (full mode) built levels.
 
         Each task's residual is its kernel's (computed in the step); its ``sigma_min`` is its
@@ -422,20 +461,37 @@ class NativeStepMirror:
         free (``"full"``, ``NativeStep.diagnose``), as the Python step's diagnostics have them.
         When a task is in conflict under ``"full"``, the statuses (and the level it yields
         to) are :meth:`~hqp.control.diagnostics.Diagnostics.hqp_statuses` on :meth:`built`.
+
+        In ``"residuals"`` mode the statuses are a function of none: the step's residuals,
+        singular values and costs are copied out now, the :class:`TaskStatus` objects made
+        when called (:class:`~hqp.control.command.FeasibilityReport` calls it when its
+        ``tasks`` are first read).
         """
         core = self.step_core
         if self._report_order is None:  # by built level, as Stack.build's spans
             self._report_order = sorted(enumerate(self._placements()), key=lambda e: e[1][2])
-        costs, level_sigma = core.level_summary()
-        weak = core.weak_directions()
-        sigmas = core.diagnose() if diagnostics.full else None
-        residuals = core.residuals
+        costs, level_sigma, weak, residuals = core.report_data()
+        if not diagnostics.full:
+            return (lambda: self._statuses(diagnostics, residuals, level_sigma, weak, None),
+                    costs, None)
+        sigmas = core.diagnose()
+        statuses = self._statuses(diagnostics, residuals, level_sigma, weak, sigmas)
+        if statuses is None:  # a conflict: the level it yields to, from the levels
+            built, solution = self.built()
+            return diagnostics.hqp_statuses(built, solution), costs, built
+        return statuses, costs, None
+
+    def _statuses(self, diagnostics: Diagnostics, residuals: np.ndarray,
+                  level_sigma: np.ndarray, weak: np.ndarray,
+                  sigmas: np.ndarray | None) -> tuple[TaskStatus, ...] | None:
+        """Each kernel's status from the step's data (``None``: a conflict in full mode)."""
         out = []
+        assert self._report_order is not None
         for handle, (_kind, level, built_level, _e0, neq, _i0, nin, _w) in self._report_order:
             if neq + nin == 0 or built_level < 0:
                 continue
             if not neq:
-                sigma = float("nan")
+                sigma = math.nan
             elif sigmas is None:
                 sigma = float(level_sigma[built_level])
             else:
@@ -443,14 +499,10 @@ class NativeStepMirror:
             residual = float(residuals[handle])
             status = diagnostics.classify(residual, sigma, neq > 0)
             if sigmas is not None and status is Feasibility.CONFLICT:
-                # the level a conflicting task yields to: the Python diagnostics, on the
-                # native levels
-                built, solution = self.built()
-                return (diagnostics.hqp_statuses(built, solution),
-                        tuple(float(c) for c in costs), built)
+                return None
             out.append(TaskStatus(self._names[handle], self.stack_level(level), status,
                                   residual, None, sigma, int(weak[built_level])))
-        return tuple(out), tuple(float(c) for c in costs), None
+        return tuple(out)
 
     def _placements(self) -> list[tuple[Any, ...]]:
         """Return where each kernel's rows sit (``NativeStep.entry``, handle order)."""
@@ -505,46 +557,123 @@ class NativeStepMirror:
         return BuiltStack(levels, tuple(index), tuple(spans), rows, n), solution
 
 
+class ErrorSource:
+    """The task errors of one native step of a controller, fetched when first read.
+
+    ``Task._fetch_error`` calls :meth:`fetch`, which records the task's error from the
+    mirror (:meth:`NativeStepMirror.record_error`) only if that step is still the
+    controller's last one (its step ``serial``); otherwise the error was computed since, by a
+    Python step's rows or a later native step's source.
+    """
+
+    __slots__ = ("mirror", "controller", "serial")
+
+    def __init__(self, mirror: NativeStepMirror, controller: Any, serial: int) -> None:
+        self.mirror = mirror
+        self.controller = controller
+        self.serial = serial
+
+    def fetch(self, task: Any) -> None:
+        """Record ``task``'s error of this step, if the step is the controller's last."""
+        if self.controller.step_serial == self.serial:
+            self.mirror.record_error(task)
+
+
+def _tau_bytes(task: Any) -> tuple[Any, ...]:
+    tau = None if task.tau_max is None else np.asarray(task.tau_max, dtype=float).tobytes()
+    return (tau,)
+
+
+def _obstacle_ids(task: Any) -> tuple[Any, ...]:
+    try:
+        obstacles: tuple[int, ...] | None = tuple(id(o) for o in task.selected_obstacles())
+    except HQPError:  # the Python step raises it
+        obstacles = None
+    return tuple(id(p) for p in task.proxies) + (id(task.world), obstacles)
+
+
+def _dynamic_gains(task: Any) -> tuple[Any, ...]:
+    reference = getattr(task, "reference", None)
+    return _gains(task) if reference is not None and hasattr(reference, "kp") else ()
+
+
+_Extractor = Callable[[Any], tuple[Any, ...]]
+
+_GAIN_FIELDS = ("reference.kp", "reference.kv", "reference.max_velocity",
+                "reference.max_acceleration")
+"""A tracking task's PD reference (always a :class:`~hqp.tasks.reference.PDReference`)."""
+
+
+def _extractor(cls: type) -> _Extractor:
+    """Return the function of :func:`_parameters` for a task class (chosen once per class).
+
+    The plain attributes of a class are read by one ``operator.attrgetter``; arrays are
+    compared by their bytes, obstacles and pairs by identity.
+    """
+    extra: _Extractor | None = None
+    names: tuple[str, ...] = ()
+    if issubclass(cls, Contact):
+        names = ("mu", "f_min", "max_normal_force", "kp", "kd")
+    elif issubclass(cls, TorqueLimits):
+        names, extra = ("scale",), _tau_bytes
+    elif issubclass(cls, JointLimits):
+        names = ("position_margin", "velocity_scale", "reserve", "velocity_time",
+                 "approach_time", "inactive_beyond", "acceleration_bounds")
+
+        def extra(t: Any) -> tuple[Any, ...]:
+            return (t.qdd_max is None,)
+    elif issubclass(cls, GazeTask):
+        names = ("frame",)
+
+        def extra(t: Any) -> tuple[Any, ...]:
+            return (t.axis.tobytes(),)
+    elif issubclass(cls, PoseTask):
+        names = ("frame", "angular_reference.max_velocity", "angular_reference.max_acceleration")
+        if issubclass(cls, HybridTask):
+            names += ("contact", "force_axes")
+    elif issubclass(cls, InternalForcesTask):
+        names = ("contacts", "_components")
+    elif issubclass(cls, SelfCollision):
+        names = ("d_safe", "d_influence", "xi", "kv")
+
+        def extra(t: Any) -> tuple[Any, ...]:
+            return tuple((id(a), id(b)) for a, b in t.pairs)
+    elif issubclass(cls, ObstacleAvoidance):
+        names, extra = ("d_safe", "d_influence", "xi", "kv"), _obstacle_ids
+    elif issubclass(cls, EffortTask):
+        def extra(t: Any) -> tuple[Any, ...]:
+            return (t._w.tobytes(),)
+    elif issubclass(cls, CoPTask):
+        names = ("contacts", "height")
+    if issubclass(cls, (TrackingTask, CentroidalMomentumTask)):
+        names += _GAIN_FIELDS
+    elif not issubclass(cls, Contact):  # (a contact's reference is its placement)
+        inner = extra
+
+        def extra(t: Any) -> tuple[Any, ...]:
+            return (() if inner is None else inner(t)) + _dynamic_gains(t)
+    fields = operator.attrgetter("weight", *names)
+    if extra is None:
+        def parameters(task: Any) -> tuple[Any, ...]:
+            return (id(task), fields(task))
+    else:
+        more = extra
+
+        def parameters(task: Any) -> tuple[Any, ...]:
+            return (id(task), fields(task), more(task))
+    return parameters
+
+
+_EXTRACTORS: dict[type, _Extractor] = {}
+
+
 def _parameters(task: Any) -> tuple[Any, ...]:
     """Return what a kernel copies of a task when built (a change means a new mirror)."""
-    out: tuple[Any, ...] = (id(task), task.weight)
-    if isinstance(task, Contact):
-        out += (task.mu, task.f_min, task.max_normal_force, task.kp, task.kd)
-    elif isinstance(task, TorqueLimits):
-        tau = None if task.tau_max is None else np.asarray(task.tau_max, dtype=float).tobytes()
-        out += (tau, getattr(task, "scale", None))
-    elif isinstance(task, JointLimits):
-        out += (task.position_margin, task.velocity_scale, task.reserve, task.velocity_time,
-                task.approach_time, task.inactive_beyond, task.acceleration_bounds,
-                task.qdd_max is None)
-    elif isinstance(task, GazeTask):
-        out += (task.frame, task.axis.tobytes())
-    elif isinstance(task, PoseTask):
-        ang = task.angular_reference
-        out += (task.frame, ang.max_velocity, ang.max_acceleration)
-        if isinstance(task, HybridTask):
-            out += (task.contact, task.force_axes)
-    elif isinstance(task, InternalForcesTask):
-        out += (task.contacts, task._components)
-    elif isinstance(task, (ObstacleAvoidance, SelfCollision)):
-        out += (task.d_safe, task.d_influence, task.xi, task.kv)
-        if isinstance(task, SelfCollision):
-            out += tuple((id(a), id(b)) for a, b in task.pairs)
-        else:  # the obstacles avoided now: one row per (proxy, obstacle)
-            try:
-                obstacles: tuple[int, ...] | None = tuple(
-                    id(o) for o in task.selected_obstacles())
-            except HQPError:  # the Python step raises it
-                obstacles = None
-            out += tuple(id(p) for p in task.proxies) + (id(task.world), obstacles)
-    elif isinstance(task, EffortTask):
-        out += (task._w.tobytes(),)
-    elif isinstance(task, CoPTask):
-        out += (task.contacts, task.height)
-    reference = getattr(task, "reference", None)
-    if reference is not None and hasattr(reference, "kp"):
-        out += _gains(task)
-    return out
+    cls = type(task)
+    extract = _EXTRACTORS.get(cls)
+    if extract is None:
+        extract = _EXTRACTORS[cls] = _extractor(cls)
+    return extract(task)
 
 
 class NativeEngine:
@@ -572,7 +701,7 @@ class NativeEngine:
         """
         stack = controller.stack
         rate = None if controller.max_torque_rate is None else int(controller._rate_after)
-        return tuple((stack.level_of_task(t.name), _parameters(t)) for t in stack.tasks) + (
+        return tuple((level, _parameters(t)) for level, t in stack.task_levels()) + (
             ("torque_rate", rate), ("weak_thresholds", stack.weak_thresholds))
 
     def ready(self, controller: Any, t: float) -> NativeStepMirror | None:

@@ -33,13 +33,13 @@ import abc
 import dataclasses
 import time
 from collections.abc import Sequence
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from hqp.control.command import Command, FeasibilityReport
 from hqp.control.diagnostics import MODES, Diagnostics
-from hqp.control.native import RATE_TASK, NativeEngine, NativeStepMirror
+from hqp.control.native import RATE_TASK, ErrorSource, NativeEngine, NativeStepMirror
 from hqp.control.resolver import HQPResolver, Resolver
 from hqp.errors import InvalidInput
 from hqp.model.layout import Layout
@@ -280,6 +280,9 @@ class WholeBodyController(Controller):
         self._last_built: BuiltStack | None = None
         self._native_levels: NativeStepMirror | None = None  # last step native: built on demand
         self._native_failure: str | None = None  # why this step's native solve failed
+        self._slots: tuple[Any, list[tuple[str, int, int]]] | None = None  # _split's
+        self.step_serial = 0
+        """Steps made so far (a native step's task errors are fetched while it is the last)."""
         self._blend_start: float | None = None
         self._blend_delta: np.ndarray | None = None
         self._blend_notes: tuple[str, ...] = ()
@@ -391,6 +394,7 @@ class WholeBodyController(Controller):
         """
         clock = time.perf_counter
         t0 = clock()
+        self.step_serial += 1
         q = self._checked_q(state.q, t)
         native = self.native is not None and self._blend_start is None
         # a native step runs its own pinocchio pass: the Python model's waits for a reader
@@ -471,8 +475,8 @@ class WholeBodyController(Controller):
         mirror = self.native.ready(self, t)
         if mirror is None:
             return None
-        # steady: advance changes nothing but tells contact-aware tasks the active contacts
-        self.stack.advance(self.model, self.layout, self.dt, t, self.last_x)
+        # steady (ready() checked it): advancing tells contact-aware tasks the active contacts
+        self.stack.advance_steady()
         clock = time.perf_counter
         if mirror.has_torque_rate:
             assert self.max_torque_rate is not None
@@ -482,7 +486,7 @@ class WholeBodyController(Controller):
         except RuntimeError as exc:  # the Python step solves it on the fallback backend
             self._native_failure = str(exc).splitlines()[0] if str(exc) else "failed"
             return None
-        mirror.record_errors()
+        mirror.record_errors(ErrorSource(mirror, self, self.step_serial))
         t3 = clock()
         self.native.steps += 1
         self._rate_ref = tau.copy()
@@ -492,7 +496,10 @@ class WholeBodyController(Controller):
         qdd, wrenches = self._split(x)
         t4 = clock()
         statuses, costs, built = mirror.report(self.feasibility)
-        report = FeasibilityReport(tasks=statuses, notes=tuple(notes), level_costs=costs)
+        if callable(statuses):  # made when first read, from the step's data
+            report = FeasibilityReport(notes=notes, level_costs=costs, statuses=statuses)
+        else:
+            report = FeasibilityReport(tasks=statuses, notes=notes, level_costs=costs)
         t5 = clock()
         self.last_x = x
         self.last_t = float(t)
@@ -508,13 +515,18 @@ class WholeBodyController(Controller):
 
     def _split(self, x: np.ndarray) -> tuple[np.ndarray, dict[str, np.ndarray]]:
         """``qdd`` and the wrench of each contact slot of a solution ``x`` (copies)."""
-        return x[: self.layout.nv].copy(), {c.name: x[c.slice].copy()
-                                              for c in self.layout.contacts}
+        layout = self.layout
+        slots = self._slots
+        if slots is None or slots[0] is not layout:
+            slots = self._slots = (layout, [(c.name, c.start, c.start + c.size)
+                                            for c in layout.contacts])
+        return x[: layout.nv].copy(), {name: x[a:b].copy() for name, a, b in slots[1]}
 
     def _clip(self, tau: np.ndarray, notes: list[str]) -> np.ndarray:
         """Torques within the model's limits; a clip beyond rounding is noted."""
-        excess = np.abs(tau) - self.model.tau_max
-        if np.any(excess > 0.0):
+        excess = np.abs(tau)
+        excess -= self.model.tau_max
+        if excess.max(initial=0.0) > 0.0:
             # The solver meets the torque-limit rows to its tolerance: entries beyond by less
             # than 1e-6 relative (or 1e-6 N m) are rounding; larger ones are reported.
             worst = float(excess.max())

@@ -12,7 +12,7 @@ from __future__ import annotations
 import abc
 import enum
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -174,9 +174,24 @@ class Task(abc.ABC):
 
         """
 
+    _error_source: Any = None
+    """Where the error of the last step, computed elsewhere (the native step), is fetched
+    when :meth:`error` is first called after it (``None``: the error held is current)."""
+
     def error(self) -> np.ndarray:
         """Task-space error ``goal - current`` at the last call of :meth:`rows` (empty if none)."""
         return np.zeros(0)
+
+    def _fetch_error(self) -> None:
+        """Fetch the error of a step computed elsewhere, if one waits (see ``_error_source``).
+
+        The source records the error (``record_error``) only if its step is still the
+        controller's last one; a Python step since then computed the error in :meth:`rows`.
+        """
+        source = self._error_source
+        if source is not None:
+            self._error_source = None
+            source.fetch(self)
 
     def where(self) -> str:
         """Prefix for error messages: the primitive's type and name."""

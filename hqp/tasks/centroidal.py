@@ -175,6 +175,7 @@ class CentroidalMomentumTask(Task):
 
     def error(self) -> np.ndarray:
         """``h_goal - S h`` at the last step (empty before)."""
+        self._fetch_error()
         return np.zeros(0) if self._last is None else -self._last
 
     def record_error(self, e: np.ndarray) -> None:

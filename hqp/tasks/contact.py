@@ -358,6 +358,7 @@ class Contact(Task):
 
     def error(self) -> np.ndarray:
         """Stabilisation error ``-e`` (reference minus current pose) at the last :meth:`rows`."""
+        self._fetch_error()
         return self._error
 
 

@@ -544,6 +544,7 @@ class JointLimits(Task):
 
     def error(self) -> np.ndarray:
         """Excursion past the position limits ``(na,)`` at the last call (0 inside)."""
+        self._fetch_error()
         return self._violation
 
     def record_error(self, model: RobotModel) -> None:

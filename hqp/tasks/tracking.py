@@ -260,6 +260,10 @@ class TrackingTask(Task):
         return TrajectorySample(position, v, a)
 
     def _store_goal(self, sample: TrajectorySample) -> None:
+        # read-only: a goal changes through set_goal only (the native step pushes a goal
+        # down when it is a new sample, hqp.control.native)
+        for array in (sample.position, sample.velocity, sample.acceleration):
+            array.setflags(write=False)
         self._goal = sample
         self._trajectory = None
 
@@ -300,6 +304,7 @@ class TrackingTask(Task):
 
     def error(self) -> np.ndarray:
         """``-e`` (goal minus current, in the task's coordinates) at the last step."""
+        self._fetch_error()
         if self._recorded is not None:
             return -self._recorded
         return np.zeros(0) if self._last is None else -self._last.error

@@ -161,6 +161,10 @@ inline void bind_solver(nb::module_& m) {
       .def_prop_ro("anchored", &PySolver::anchored,
                    "Levels of the last solve whose point was the anchor's (the previous "
                    "solution's least-squares point, strictly inside every bound).");
+  m.def("solver_simd", &solver_simd,
+        "The instruction set the solver's translation units were compiled for: \"avx2+fma\" "
+        "(HQP_SIMD=AUTO on a machine with them, or ON) or \"sse2\".");
+  m.def("solver_simd_option", &solver_simd_option, "The build's HQP_SIMD option.");
   m.def(
       "row_support_project",
       [](const Eigen::MatrixXd& M, const Eigen::MatrixXd& Z) {

@@ -241,6 +241,21 @@ inline void bind_step(nb::module_& m) {
           },
           "(cost, sigma_min) of each built level of the last step.")
       .def(
+          "report_data",
+          [](const NativeStep& s) {
+            const int L = s.level_count();
+            Eigen::VectorXd cost(L), sigma(L);
+            Eigen::VectorXi weak(L);
+            for (int k = 0; k < L; ++k) {
+              cost[k] = s.result(k).cost;
+              sigma[k] = s.result(k).sigma_min;
+              weak[k] = s.result(k).weak;
+            }
+            return nb::make_tuple(cost, sigma, weak, Eigen::VectorXd(s.residuals()));
+          },
+          "(cost, sigma_min, weak directions) of each built level and each kernel's "
+          "residual of the last step, in one call (the feasibility report's data).")
+      .def(
           "level_seconds",
           [](const NativeStep& s) {
             Eigen::VectorXd out(s.level_count());

@@ -46,6 +46,22 @@ double mth_singular(const CVecRef& s, Index m, Index r, double thr) {
 
 }  // namespace
 
+const char* solver_simd() {
+#if defined(__AVX2__) && defined(__FMA__)
+  return "avx2+fma";
+#else
+  return "sse2";
+#endif
+}
+
+const char* solver_simd_option() {
+#ifdef HQP_SIMD_OPTION
+  return HQP_SIMD_OPTION;
+#else
+  return "AUTO";
+#endif
+}
+
 void LevelData::set_norm(Index n) {
   A.setIdentity(n, n);
   b.setZero(n);

@@ -93,6 +93,11 @@ struct Slot {
   void reserve(Index n, Index me, Index mi, Index P, Index total_in);
 };
 
+/// The instruction set the solver's units were compiled for ("avx2+fma" or "sse2").
+const char* solver_simd();
+/// The build's HQP_SIMD option ("AUTO", "ON" or "OFF").
+const char* solver_simd_option();
+
 class Hierarchy {
  public:
   explicit Hierarchy(const Settings& settings) : settings_(settings) {}
