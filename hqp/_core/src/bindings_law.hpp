@@ -9,6 +9,7 @@
 #include <nanobind/stl/vector.h>
 
 #include <exception>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -210,8 +211,17 @@ inline void bind_law(nb::module_& m) {
           },
           "Per source (residual, eig_min, flags: 1 rows present, 2 force rows at a task "
           "level, 4 singular, law level, start, rows) and per stack level (cost, present).")
-      .def("diagnose", &NativeLaw::diagnose, nb::arg("singular_tolerance"),
-           "Per source eig_min and singular flag of the full diagnostics (read by report()).")
+      .def(
+          "diagnose",
+          [](NativeLaw& s, double singular_tolerance, bool forbid_malloc) {
+            const std::string error = law_detail::released(forbid_malloc, [&]() {
+              s.diagnose(singular_tolerance);
+              return std::string();
+            });
+            if (!error.empty()) throw std::runtime_error(error);
+          },
+          nb::arg("singular_tolerance"), nb::arg("forbid_malloc") = false,
+          "Per source eig_min and singular flag of the full diagnostics (read by report()).")
       .def(
           "zone",
           [](const NativeLaw& s, int source) {
