@@ -533,7 +533,7 @@ void NativeLaw::assemble() {
         }
         ++res.count;
       }
-      if (s.slot_start >= 0 && physics && all_qdd) {  // an active contact: J_c^T columns
+      if (s.slot_start >= 0 && all_qdd) {  // an active contact: J_c^T columns
         Jf_.middleCols(nf_, e.neq) = lv.A.middleRows(e.eq0, e.neq).leftCols(nv_).transpose();
         Jf_.middleCols(nf_, e.neq) /= s.sqrt_w;
         active_slots_.emplace_back(s.slot_start, e.neq);
