@@ -363,6 +363,8 @@ class NativeLawEngine(NativeEngine):
     def why_not(self, controller: Any) -> str | None:
         """Return why the controller's settings leave its steps to Python (``None``: none)."""
         r = controller.resolver
+        if not 0.0 < r.eig_tol < 1.0:  # the Python law refuses it (and notes why)
+            return f"eig_tol={r.eig_tol!r}"
         if r.method != "whitened":
             return f"method={r.method!r}"
         if r.internal_forces not in ("none", "min-norm"):
