@@ -238,6 +238,28 @@ def test_native_law_equals_the_python_law_at_random_states(name, zones):
         assert "joint_limits" in [lv.name for lv in native.last_law.levels] or held < 10
 
 
+def test_native_law_on_one_foot_equals_the_python_law():
+    """A foot released (its slot held at zero by the physics rows, six support rows left):
+    once the release is done the steps are native again and equal the Python law's."""
+    robot, native, python = _controllers("g1", diagnostics="full")
+    state = RobotState(robot.q_standing.copy(), np.zeros(native.model.nv))
+    for ctrl in (native, python):
+        ctrl.step(state, 1.0)
+        ctrl.deactivate_contact("left_foot", t=1.0, unload_time=0.0)
+    steps = native.native.steps
+    for i, (q, v, _t) in enumerate(_states(robot, native.model, seed=9, count=80)):
+        t = 1.001 + 0.001 * i
+        v[:6] = 0.0
+        a = native.step(RobotState(q, v), t)
+        b = python.step(RobotState(q, v), t)
+        if native.native.steps > steps:  # past the blend of the release: native
+            check_commands(a, b, native, python)
+    # the release's blend (blend_time 0.05 s) on the Python law, then 30 native steps
+    assert native.active_contacts == ("right_foot",) and native.native.steps - steps >= 25
+    assert native.last_problem.support[0].shape[0] == 6
+    assert not native.last_x[native.layout.contact("left_foot").slice].any()
+
+
 def test_native_law_levels_are_the_python_levels():
     """``last_built`` of a native step (the native rows, a zone's rows from its kernel) equals
     ``Stack.build`` at the same state, spans and unweighted rows included."""

@@ -167,18 +167,17 @@ class NativeLawMirror:
         """Torques of the last step ``(na,)`` [N m]."""
         return self.law.tau
 
-    def record_errors(self, counts: np.ndarray | None = None) -> None:
-        """Give each task the error of the last step (kernels; zones: active joints, errors)."""
+    def record_errors(self) -> None:
+        """Give each task the error of the last step (kernels; zones: active joints, errors).
+
+        A zone's ``active`` and :meth:`~hqp.tasks.joint_limit_zone.JointLimitZone.error` are
+        what its ``rows`` leaves them at on the Python step.
+        """
         self.kernels.record_errors()
         names = self.model.joint_names
         for source, task in self._zones:
-            if counts is not None and counts[source] == 0:
-                task.active = ()
-                task._error = np.zeros(0)
-                continue
             active, error, _ref = self.law.zone(source)
-            task.active = tuple(names[i] for i in active)
-            task._error = error
+            task.record_error(tuple(names[i] for i in active), error)
 
     # -- the report -----------------------------------------------------------------------
 
@@ -213,8 +212,7 @@ class NativeLawMirror:
         full = diagnostics.full
         if full:
             law.diagnose(diagnostics.singular_tolerance)
-        residual, eig, flags, level, _start, count, cost, present = law.report()
-        self.record_errors(count)
+        residual, eig, flags, level, _start, _count, cost, present = law.report()
         tolerance = diagnostics.tolerance
         out = []
         yields = False

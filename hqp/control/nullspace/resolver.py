@@ -292,6 +292,7 @@ class NullSpaceController(WholeBodyController):
         self.stack.advance(self.model, self.layout, self.dt, t, self.last_x)
         if mirror.step(q, v, t):  # the Python law runs it (and notes why it fails)
             return None
+        mirror.record_errors()
         clock = time.perf_counter
         t3 = clock()
         engine.steps += 1

@@ -31,7 +31,7 @@ void svd_lstsq(const Eigen::JacobiSVD<MatrixXd>& svd, const CVecRef& rhs, VecRef
   while (rank < s.size() && s(rank) > cut) ++rank;
   y.setZero();
   if (rank == 0) return;
-  auto t = tmp.head(rank);
+  VecRef t = tmp.head(rank);
   t.noalias() = svd.matrixU().leftCols(rank).transpose() * rhs;
   t.array() /= s.head(rank).array();
   y.noalias() = svd.matrixV().leftCols(rank) * t;
@@ -230,17 +230,17 @@ void NullSpaceLaw::solve(const CMatRef& J, const CVecRef& a, const Index* starts
     const Index start = starts[k], m = starts[k + 1] - starts[k];
     const Index d = basis_cols_[std::size_t(k)];
     info = LawLevelInfo{start, m, 0, d, 0.0, 0.0};
-    const auto Zk = Z_[std::size_t(k)].topLeftCorner(r, d);
-    auto Znext = Z_[std::size_t(k + 1)].topLeftCorner(r, d);
+    const CMatRef Zk = Z_[std::size_t(k)].topLeftCorner(r, d);
+    MatRef Znext = Z_[std::size_t(k + 1)].topLeftCorner(r, d);
     if (m == 0) {
       Znext = Zk;
       basis_cols_[std::size_t(k + 1)] = d;
       continue;
     }
-    const auto Jk = J.middleRows(start, m);
-    const auto ak = a.segment(start, m);
+    const CMatRef Jk = J.middleRows(start, m);
+    const CVecRef ak = a.segment(start, m);
     info.target_norm = ak.norm();
-    auto Jh = Jh_.topRows(m);
+    MatRef Jh = Jh_.topRows(m);
     Jh.noalias() = Jk * Wh_.leftCols(r);
     // ref: the largest eigenvalue of J* Phi J*^T = Jh Jh^T (eq. 22's scale)
     const Index g = std::min(m, r);
@@ -256,12 +256,12 @@ void NullSpaceLaw::solve(const CMatRef& J, const CVecRef& a, const Index* starts
       ref = gram_.values()(g - 1);
     }
     info.threshold = std::max(eig_tol * ref, kTiny);
-    auto resid = resid_.head(m);
+    VecRef resid = resid_.head(m);
     resid = ak;
     resid.noalias() -= Jk * qdd0_;
     resid.noalias() -= Jh * y_;  // a_k - J_k qdd_<k
-    auto eig = eig_.segment(start, m);
-    auto F = F_.segment(start, m);
+    VecRef eig = eig_.segment(start, m);
+    VecRef F = F_.segment(start, m);
     eig.setZero();
     F.setZero();
     if (d == 0) {
@@ -280,16 +280,16 @@ void NullSpaceLaw::solve(const CMatRef& J, const CVecRef& a, const Index* starts
     while (rank < p && eig(rank) > info.threshold) ++rank;
     info.rank = rank;
     if (rank) {
-      auto coef = coef_.head(rank);
+      VecRef coef = coef_.head(rank);
       coef.noalias() = svd.matrixU().leftCols(rank).transpose() * resid;
       coef.array() /= s.head(rank).array();
       ytmp_.head(rank) = coef.array() / s.head(rank).array();
       F.noalias() = svd.matrixU().leftCols(rank) * ytmp_.head(rank);  // eq. 23
-      auto Vc = ytmp_.head(d);
+      VecRef Vc = ytmp_.head(d);
       Vc.noalias() = svd.matrixV().leftCols(rank) * coef;
       y_.noalias() += Zk * Vc;  // L^T tau_k = J^_k|p^T F_k (eq. 20)
     }
-    auto Zn = Z_[std::size_t(k + 1)].topLeftCorner(r, d - rank);
+    MatRef Zn = Z_[std::size_t(k + 1)].topLeftCorner(r, d - rank);
     Zn.noalias() = Zk * svd.matrixV().rightCols(d - rank);  // eq. 19
     basis_cols_[std::size_t(k + 1)] = d - rank;
   }
@@ -333,7 +333,7 @@ void NullSpaceLaw::finish(const CMatRef& J, const CVecRef& a, bool min_norm) {
   }
   for (const LawLevelInfo& info : info_) {
     if (!info.rows) continue;
-    auto res = res_.segment(info.start, info.rows);
+    VecRef res = res_.segment(info.start, info.rows);
     res.noalias() = J.middleRows(info.start, info.rows) * qdd_;
     res -= a.segment(info.start, info.rows);
   }
@@ -584,7 +584,7 @@ void NativeLaw::decision_vector() {
   shape(Jfa_, nv_, nf_);
   Jfa_ = Jf_.leftCols(nf_);
   svd_f_.compute(Jfa_, kThin);
-  auto w = wf_.head(nf_);
+  VecRef w = wf_.head(nf_);
   svd_lstsq(svd_f_, gen_, w, s_.head(nf_));
   Index start = 0;
   for (const std::pair<Index, Index>& slot : active_slots_) {
@@ -612,13 +612,13 @@ void NativeLaw::report() {
       const LevelData& lv = step_.level(s.info.built_level);
       const NativeStep::EntryInfo& e = s.info;
       if (e.neq) {
-        auto r = s_.head(e.neq);
+        VecRef r = s_.head(e.neq);
         r.noalias() = lv.A.middleRows(e.eq0, e.neq) * x_;
         r -= lv.b.segment(e.eq0, e.neq);
         sq += r.squaredNorm();
       }
       if (e.nin) {
-        auto c = s_.head(e.nin);
+        VecRef c = s_.head(e.nin);
         c.noalias() = lv.C.middleRows(e.in0, e.nin) * x_;
         for (Index j = 0; j < e.nin; ++j) {
           const double cx = c(j), lo = lv.lo(e.in0 + j), up = lv.up(e.in0 + j);
@@ -658,7 +658,7 @@ void NativeLaw::diagnose(double singular_tolerance) {
       gram_.compute(Ph, false);
       ref = gram_.values()(g - 1) / w;
     }
-    const auto Z = law_.basis(res.law_level);
+    const CMatRef Z = law_.basis(res.law_level);
     MapM Pz = Pz_.mat(m, Z.cols());
     Pz.noalias() = P * Z;
     MapM Pp = Ph_.mat(m, m);
