@@ -260,6 +260,26 @@ def test_native_law_on_one_foot_equals_the_python_law():
     assert not native.last_x[native.layout.contact("left_foot").slice].any()
 
 
+def test_a_task_at_the_physics_level_is_support_as_in_python():
+    """A task's qdd rows at the physics level are support rows (law_problem's rule): the
+    support forces then include its rows, and x maps J_s^T f onto the contact slots by least
+    squares (the general path of decision_vector, not the contacts-only shortcut)."""
+    from hqp.tasks.posture import PostureTask
+
+    robot, native, python = _controllers("talos", diagnostics="residuals")
+    for ctrl in (native, python):
+        held = PostureTask(ctrl.model, list(ctrl.model.joint_names[-2:]), name="held",
+                           kp=20.0, weight=4.0)
+        held.set_goal(np.zeros(2))
+        ctrl.add_task(held, Category.PHYSICS, t=1.0, ramp_time=0.0)
+    for q, v, t in _states(robot, native.model, seed=11, count=6):
+        a = native.step(RobotState(q, v), t)
+        b = python.step(RobotState(q, v), t)
+        check_commands(a, b, native, python)
+        assert native.last_problem.support[0].shape[0] == 14
+    assert native.native.steps == 6, native.native.unsupported
+
+
 def test_native_law_levels_are_the_python_levels():
     """``last_built`` of a native step (the native rows, a zone's rows from its kernel) equals
     ``Stack.build`` at the same state, spans and unweighted rows included."""

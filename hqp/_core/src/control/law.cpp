@@ -99,11 +99,11 @@ NullSpaceLaw::NullSpaceLaw(Index nv, Index nv_base)
   gram_.reserve(nv_);
 }
 
-void NullSpaceLaw::sym_pinv(const MatrixXd& A, double rel_tol, MatrixXd& pinv) {
+Index NullSpaceLaw::sym_pinv(const MatrixXd& A, double rel_tol, MatrixXd& pinv) {
   // _sym_pinv: eigenvalues above rel_tol times the largest are inverted
   const Index m = A.rows();
   shape(pinv, m, m);
-  if (m == 0) return;
+  if (m == 0) return 0;
   eig_s_.reserve(m);
   MapM G = gwork_.mat(m, m);
   G = A;
@@ -119,6 +119,7 @@ void NullSpaceLaw::sym_pinv(const MatrixXd& A, double rel_tol, MatrixXd& pinv) {
   MapM Uw = uw_.mat(m, keep);
   Uw.noalias() = U.rightCols(keep) * w.tail(keep).cwiseInverse().asDiagonal();
   pinv.noalias() = Uw * U.rightCols(keep).transpose();
+  return keep;
 }
 
 std::string NullSpaceLaw::dynamics(const CMatRef& M, const CVecRef& h, const CMatRef& Js,
@@ -148,19 +149,21 @@ std::string NullSpaceLaw::dynamics(const CMatRef& M, const CVecRef& h, const CMa
     MinvJsT_.noalias() = Minv_ * Js.transpose();
     shape(Ls_inv_, ns_, ns_);
     Ls_inv_.noalias() = Js * MinvJsT_;
-    sym_pinv(Ls_inv_, kPhiTol, Lambda_s_);
+    ns_rank_ = sym_pinv(Ls_inv_, kPhiTol, Lambda_s_);
     shape(Jbar_s_, nv_, ns_);
     Jbar_s_.noalias() = MinvJsT_ * Lambda_s_;
-    shape(Ns_, nv_, nv_);
-    Ns_.setIdentity();
-    Ns_.noalias() -= Jbar_s_ * Js;
-    shape(NsMinv_, nv_, nv_);
-    NsMinv_.noalias() = Ns_ * Minv_;  // = M^-1 N_s^T
+    // N_s M^-1 = M^-1 - Jbar_s J_s M^-1 (= M^-1 N_s^T): B = N_s M^-1 S^T, without N_s
     shape(B_, nv_, na_);
-    B_ = NsMinv_.rightCols(na_);
-    qdd0_.noalias() = -NsMinv_ * h;
-    qdd0_.noalias() += Jbar_s_ * bs;
+    B_ = Minv_.rightCols(na_);
+    B_.noalias() -= Jbar_s_ * MinvJsT_.bottomRows(na_).transpose();
+    // qdd0 = -N_s M^-1 h + Jbar_s b_s
+    shape(u_, ns_);
+    u_ = bs;
+    u_.noalias() += MinvJsT_.transpose() * h;
+    qdd0_.noalias() = -Minv_ * h;
+    qdd0_.noalias() += Jbar_s_ * u_;
   } else {
+    ns_rank_ = 0;
     shape(Lambda_s_, 0, 0);
     shape(B_, nv_, na_);
     B_ = Minv_.rightCols(na_);
@@ -474,6 +477,7 @@ void NativeLaw::assemble() {
   ns_ = 0;
   nf_ = 0;
   active_slots_.clear();
+  support_is_contacts_ = true;
   std::fill(level_rows_.begin(), level_rows_.end(), Index(0));
   Index L = 0;
   starts_[0] = 0;
@@ -492,6 +496,7 @@ void NativeLaw::assemble() {
         z.update(robot.q().tail(na_), robot.v().tail(na_));
         level_rows_[std::size_t(k)] += z.count;
         res.present = z.count > 0;
+        if (physics && z.count) support_is_contacts_ = false;
         MatrixXd& J = physics ? Js_ : J_;
         VectorXd& b = physics ? bs_ : a_;
         Index& m = physics ? ns_ : m_;
@@ -509,6 +514,7 @@ void NativeLaw::assemble() {
       level_rows_[std::size_t(k)] += e.neq + e.nin;
       if (e.neq == 0) continue;
       const LevelData& lv = step_.level(e.built_level);
+      const Index support_start = ns_;
       bool all_qdd = true;
       for (Index i = 0; i < e.neq; ++i) {
         const Index row = e.eq0 + i;
@@ -533,10 +539,13 @@ void NativeLaw::assemble() {
         }
         ++res.count;
       }
-      if (s.slot_start >= 0 && all_qdd) {  // an active contact: J_c^T columns
+      const bool active_contact = s.slot_start >= 0 && all_qdd;
+      if (physics && ns_ > support_start && !active_contact) support_is_contacts_ = false;
+      if (active_contact) {  // J_c^T columns
         Jf_.middleCols(nf_, e.neq) = lv.A.middleRows(e.eq0, e.neq).leftCols(nv_).transpose();
         Jf_.middleCols(nf_, e.neq) /= s.sqrt_w;
-        active_slots_.emplace_back(s.slot_start, e.neq);
+        active_slots_.push_back({s.slot_start, e.neq, physics ? support_start : -1, s.sqrt_w});
+        if (!physics) support_is_contacts_ = false;
         nf_ += e.neq;
       }
     }
@@ -580,6 +589,14 @@ void NativeLaw::decision_vector() {
   x_.setZero();
   x_.head(nv_) = law_.qdd();
   if (ns_ == 0 || nf_ == 0) return;
+  if (support_is_contacts_ && nf_ == ns_ && law_.support_rank() == ns_) {
+    // J_s = diag(sqrt w) J_c of full row rank: w_c = sqrt(w_c) f_c is the unique solution
+    // (rank at PHI_TOL on J_s M^-1 J_s^T: far above numpy's lstsq cut)
+    for (const ActiveSlot& slot : active_slots_) {
+      x_.segment(slot.start, slot.size) = slot.sqrt_w * law_.f().segment(slot.row, slot.size);
+    }
+    return;
+  }
   gen_.noalias() = Js_.topRows(ns_).transpose() * law_.f();
   shape(Jfa_, nv_, nf_);
   Jfa_ = Jf_.leftCols(nf_);
@@ -587,9 +604,9 @@ void NativeLaw::decision_vector() {
   VecRef w = wf_.head(nf_);
   svd_lstsq(svd_f_, gen_, w, s_.head(nf_));
   Index start = 0;
-  for (const std::pair<Index, Index>& slot : active_slots_) {
-    x_.segment(slot.first, slot.second) = w.segment(start, slot.second);
-    start += slot.second;
+  for (const ActiveSlot& slot : active_slots_) {
+    x_.segment(slot.start, slot.size) = w.segment(start, slot.size);
+    start += slot.size;
   }
 }
 

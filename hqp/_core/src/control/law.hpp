@@ -87,6 +87,7 @@ class NullSpaceLaw {
   Index na() const { return na_; }
   Index ns() const { return ns_; }
   Index rank() const { return r_; }  ///< rank of Phi
+  Index support_rank() const { return ns_rank_; }  ///< rank of Lambda_s^-1 (PHI_TOL)
   bool plain() const { return plain_; }
   const VectorXd& tau() const { return tau_; }
   const VectorXd& tau_internal() const { return tau_int_; }
@@ -114,14 +115,15 @@ class NullSpaceLaw {
   const VectorXd& residuals() const { return res_; }
 
  private:
-  void sym_pinv(const MatrixXd& A, double rel_tol, MatrixXd& pinv);
+  /// Returns the number of eigenvalues kept.
+  Index sym_pinv(const MatrixXd& A, double rel_tol, MatrixXd& pinv);
 
   Index nv_, nv_base_, na_;
-  Index ns_ = 0, r_ = 0, nint_ = 0;
+  Index ns_ = 0, r_ = 0, nint_ = 0, ns_rank_ = 0;
   bool plain_ = false;
   // dynamics
   Eigen::LLT<MatrixXd> llt_;
-  MatrixXd R_, Rinv_, Minv_, MinvJsT_, Ls_inv_, Lambda_s_, Jbar_s_, Ns_, NsMinv_, B_, Phi_,
+  MatrixXd R_, Rinv_, Minv_, MinvJsT_, Ls_inv_, Lambda_s_, Jbar_s_, B_, Phi_,
       Phi_pinv_, Tm_, Wh_, Zint_, Js_, Df_, DfU_;
   VectorXd h_, bs_, qdd0_, w_;
   SymmetricEigen eig_s_, eig_phi_, gram_;
@@ -255,7 +257,13 @@ class NativeLaw {
   std::vector<Index> level_rows_;
   std::vector<double> level_cost_;
   std::vector<SourceResult> results_;
-  std::vector<std::pair<Index, Index>> active_slots_;  // (slot start, size)
+  struct ActiveSlot {
+    Index start, size;  ///< the slot in x
+    Index row;          ///< its first support row (-1: not a support row)
+    double sqrt_w;
+  };
+  std::vector<ActiveSlot> active_slots_;
+  bool support_is_contacts_ = true;  ///< the support rows are the active slots' rows, in order
   Eigen::JacobiSVD<MatrixXd> svd_f_;
   WorkM P_, Ph_, Pz_;
   VectorXd s_;
