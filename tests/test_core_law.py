@@ -338,7 +338,7 @@ def test_a_law_step_allocates_nothing_once_sized(name):
         v = v0 + rng.normal(scale=1e-3, size=model.nv)
         mirror.kernels.push_goals(t)
         assert law.step(q, v, ctrl.dt, forbid_malloc=True) == ""  # an allocation: an error
-        law.diagnose(1e-6)
+        law.diagnose(1e-6, forbid_malloc=True)  # raises on an allocation
         assert np.isfinite(law.tau).all()
         assert [lv[:4] for lv in law.law.levels()] == shapes  # the same shapes throughout
 
