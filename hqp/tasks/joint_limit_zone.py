@@ -139,3 +139,14 @@ class JointLimitZone(Task):
     def error(self) -> np.ndarray:
         """``q_limit - q`` of the active joints at the last :meth:`rows`."""
         return self._error
+
+    def record_error(self, active: tuple[str, ...], error: np.ndarray) -> None:
+        """Set :attr:`active` and :meth:`error` for a step whose rows were computed elsewhere.
+
+        Args:
+            active: Names of the joints inside a zone.
+            error: Their ``q_limit - q`` ``(k,)`` [rad].
+
+        """
+        self.active = active
+        self._error = error

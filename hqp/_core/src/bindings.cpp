@@ -3,6 +3,7 @@
 #include <nanobind/nanobind.h>
 #include <nanobind/stl/string.h>
 
+#include "bindings_law.hpp"
 #include "bindings_model.hpp"
 #include "bindings_solver.hpp"
 #include "bindings_step.hpp"
@@ -17,6 +18,7 @@ NB_MODULE(_ext, m) {
   hqp::bind_model(m);
   hqp::bind_tasks(m);
   hqp::bind_step(m);
+  hqp::bind_law(m);
   m.def(
       "check_urdf_model",
       [](const std::string& path, bool free_flyer, const Eigen::VectorXd& q,

@@ -4,7 +4,9 @@
 - :mod:`~hqp.control.nullspace.multicontact`: a built stack as the law's matrices and back;
 - :mod:`~hqp.control.nullspace.zones`: contact and actuation limits as activation zones;
 - :mod:`~hqp.control.nullspace.resolver`: :class:`NullSpaceResolver` and
-  :class:`NullSpaceController`.
+  :class:`NullSpaceController`;
+- :mod:`~hqp.control.nullspace.native`: the law's native step (the controller's default on a
+  bundled robot).
 
 Derivations and measured results: docs/nullspace.md.
 """

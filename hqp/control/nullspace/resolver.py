@@ -11,12 +11,14 @@ holding one: same step, stack handling, torque blending, safe command and report
 from __future__ import annotations
 
 import logging
+import time
 from collections.abc import Sequence
 from dataclasses import replace
 from typing import TYPE_CHECKING
 
 import numpy as np
 
+from hqp.control.command import Command, FeasibilityReport
 from hqp.control.diagnostics import level_cost
 from hqp.control.nullspace.law import EIG_TOL, LawSolution, prioritized_torques
 from hqp.control.nullspace.multicontact import (
@@ -25,6 +27,7 @@ from hqp.control.nullspace.multicontact import (
     law_problem,
     utilization_weights,
 )
+from hqp.control.nullspace.native import NativeLawEngine, NativeLawMirror
 from hqp.control.nullspace.zones import ZoneSettings, ZoneState, constraint_zones
 from hqp.control.servo import WholeBodyController
 from hqp.errors import HQPError, InvalidInput
@@ -96,6 +99,7 @@ class NullSpaceResolver:
         self.zone_state = ZoneState()
         self.last_law: LawSolution | None = None
         self.last_problem: LawProblem | None = None
+        self.native_result: NativeLawMirror | None = None  # the last step's, when native
 
     def twin(self) -> NullSpaceResolver:
         """Return a resolver of the same settings (the law keeps no warm start)."""
@@ -108,6 +112,7 @@ class NullSpaceResolver:
     def solve(self, model: RobotModel, layout: Layout, stack: Stack, built: BuiltStack,
               t: float, notes: list[str]) -> tuple[np.ndarray, np.ndarray] | None:
         """Apply the law to the built stack: ``(x, tau)``, or ``None`` for the safe command."""
+        self.native_result = None
         self.last_law = None
         self.zone_state = ZoneState()
         self.last_problem = problem = law_problem(built, stack, model.nv)
@@ -146,6 +151,19 @@ class NullSpaceResolver:
             support_weights=(utilization_weights(m, stack, problem)
                              if self.internal_forces == "balanced" else None),
         )
+
+    def native(self, mirror: NativeLawMirror) -> None:
+        """Record a native step of the law (its solution and matrices copied out on demand)."""
+        self.native_result = mirror
+        self.last_law = self.last_problem = None
+        self.zone_state = ZoneState()
+
+    def fetch(self) -> None:
+        """Copy the last native step's law and matrices out of the core (once)."""
+        mirror = self.native_result
+        if mirror is not None:
+            self.last_law, self.last_problem = mirror.law_solution(), mirror.law_problem()
+            self.native_result = None
 
     def report(self, built: BuiltStack, x: np.ndarray | None, notes: list[str],
                diagnostics: Diagnostics) -> tuple[tuple[TaskStatus, ...], tuple[float, ...]]:
@@ -194,10 +212,16 @@ class NullSpaceController(WholeBodyController):
         torque_zone: Fraction of the torque limits that bounds each joint's torque, as an
             activation zone at the same level (``None``, the default: the plain law).
         zone_passes: Largest number of re-applications of the law per step for the zones.
+        native: Run steady steps on the law's native step
+            (:mod:`hqp.control.nullspace.native`: the model pass, the rows, the law and the
+            report's numbers in one call into the C++ core, the same torques as the Python law
+            to rounding; the Python law runs the steps and settings it does not). ``None``
+            (default): when the model comes from a bundled robot (``Robot.model()``).
 
     Raises:
         InvalidInput: Bad period, tolerances, ``eig_tol``, ``internal_forces``, ``method``,
-            ``support_zone``, ``torque_zone`` or ``zone_passes``.
+            ``support_zone``, ``torque_zone`` or ``zone_passes``; ``native=True`` with a model
+            that does not come from a bundled robot.
 
     """
 
@@ -224,6 +248,7 @@ class NullSpaceController(WholeBodyController):
         support_zone: float | None = None,
         torque_zone: float | None = None,
         zone_passes: int = 4,
+        native: bool | None = None,
     ) -> None:
         stack = Stack() if stack is None else stack
         # The law enforces no contact limits: declare them only where the stack has their level.
@@ -237,15 +262,70 @@ class NullSpaceController(WholeBodyController):
         super().__init__(robot_model, (), stack, dt, tolerance=tolerance,
                          singular_tolerance=singular_tolerance, diagnostics=diagnostics,
                          damping=damping, resolver=resolver)
+        if native is None:
+            native = robot_model.source is not None
+        if native and robot_model.source is None:
+            raise InvalidInput("NullSpaceController: native=True needs a model built by "
+                               "Robot.model() (the native step loads the robot's URDF)")
+        self.native = NativeLawEngine(robot_model.source) if native else None
+
+    def _native_step(self, q: np.ndarray, v: np.ndarray, t: float, t0: float,
+                     t1: float) -> Command | None:
+        """Run a steady step on the law's native step (``None``: the Python law runs it).
+
+        The servo's native hook (:meth:`WholeBodyController.step`): the model pass, the rows,
+        the law and the report's numbers in one call (GIL released), the report's statuses
+        from :class:`~hqp.control.diagnostics.Diagnostics`'s tolerances. The step after the
+        safe command, and a step the native law cannot run, are the Python law's (the
+        first blends out of the safe command; the second gets the Python law's notes).
+        """
+        engine = self.native
+        if not isinstance(engine, NativeLawEngine) or self._was_safe:
+            return None
+        declared = self.stack.layout_contacts()
+        if [(c.name, c.frame, c.kind) for c in self.layout.contacts] != declared:
+            return None
+        mirror = engine.ready(self, t)
+        if mirror is None:
+            return None
+        # steady: advance changes nothing but tells contact-aware tasks the active contacts
+        self.stack.advance(self.model, self.layout, self.dt, t, self.last_x)
+        if mirror.step(q, v, t):  # the Python law runs it (and notes why it fails)
+            return None
+        mirror.record_errors()
+        clock = time.perf_counter
+        t3 = clock()
+        engine.steps += 1
+        x, tau = mirror.x, mirror.tau
+        self._rate_ref = tau.copy()
+        notes: list[str] = []
+        tau = self._clip(tau, notes)
+        qdd, wrenches = self._split(x)
+        t4 = clock()
+        statuses, costs = mirror.report(self.feasibility, notes)
+        report = FeasibilityReport(tasks=statuses, notes=tuple(notes), level_costs=costs)
+        t5 = clock()
+        self.resolver.native(mirror)
+        self.last_x = x
+        self.last_t = float(t)
+        self.last_tau = tau
+        self._last_built = None
+        self._native_levels = mirror  # type: ignore[assignment]  # built on demand
+        timings = {"update": t1 - t0, "rows": 0.0, "solve": t3 - t1, "torques": t4 - t3,
+                   "report": t5 - t4, "total": t5 - t0}
+        return Command(tau=tau, qdd=qdd, wrenches=wrenches, report=report, safe_mode=False,
+                       timings=timings, t=float(t))
 
     @property
     def last_law(self) -> LawSolution | None:
         """The law's solution at the last step (``None`` in safe mode)."""
+        self.resolver.fetch()
         return self.resolver.last_law
 
     @property
     def last_problem(self) -> LawProblem | None:
         """The law's view of the last step's stack (zone rows included)."""
+        self.resolver.fetch()
         return self.resolver.last_problem
 
     @property

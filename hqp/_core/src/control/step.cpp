@@ -294,7 +294,7 @@ NativeStep::EntryInfo NativeStep::entry(int handle) const {
           e.sqrt_w};
 }
 
-std::string NativeStep::step(const Eigen::Ref<const Eigen::VectorXd>& q,
+std::string NativeStep::rows(const Eigen::Ref<const Eigen::VectorXd>& q,
                              const Eigen::Ref<const Eigen::VectorXd>& v, double dt) {
   if (!laid_out_) layout_levels();
   RobotCore& robot = *robot_;
@@ -386,6 +386,15 @@ std::string NativeStep::step(const Eigen::Ref<const Eigen::VectorXd>& q,
       up *= e.sqrt_w;
     }
   }
+  return std::string();
+}
+
+std::string NativeStep::step(const Eigen::Ref<const Eigen::VectorXd>& q,
+                             const Eigen::Ref<const Eigen::VectorXd>& v, double dt) {
+  const std::string rows_error = rows(q, v, dt);
+  if (!rows_error.empty()) return rows_error;
+  RobotCore& robot = *robot_;
+  auto& data = hierarchy_.levels();
   for (std::size_t k = 0; k < used_.size(); ++k) {
     data[k].weak = weak_[std::size_t(used_[k])];
     data[k].finish();

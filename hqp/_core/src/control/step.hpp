@@ -84,8 +84,14 @@ class NativeStep {
   /// heap allocation once the first step has sized everything.
   std::string step(const Eigen::Ref<const Eigen::VectorXd>& q,
                    const Eigen::Ref<const Eigen::VectorXd>& v, double dt);
+  /// The first part of step(): the model pass and every kernel's rows in the level matrices
+  /// (level(k)), no solve ("" on success). The null-space law's step (control/law.hpp) runs
+  /// its own resolution on these rows.
+  std::string rows(const Eigen::Ref<const Eigen::VectorXd>& q,
+                   const Eigen::Ref<const Eigen::VectorXd>& v, double dt);
 
   Index n() const { return n_; }
+  Index nv_base() const { return nv_base_; }
   const RobotCore& robot() const { return *robot_; }
   const Hierarchy& hierarchy() const { return hierarchy_; }
   /// The built levels (non-empty ones, in order) of the last step.
