@@ -342,10 +342,14 @@ std::string Hierarchy::solve_pass(Index n, Index user_levels, bool absorb) {
       else
         d = slot.tmp;
       if (!y_none && me) {
-        slot.fact.apply_qt(d);
-        d.head(std::min<Index>(slot.fact.rank(), r)).setZero();
-        slot.fact.apply_q(d);
-        d += y;
+        if (slot.fact.rank() >= r) {
+          d = y;  // no null space: the least-squares point is unique
+        } else {
+          slot.fact.apply_qt(d);
+          d.head(slot.fact.rank()).setZero();
+          slot.fact.apply_q(d);
+          d += y;
+        }
       }
       slot.xc = x_;
       if (Z)
@@ -594,7 +598,11 @@ std::string Hierarchy::solve_pass(Index n, Index user_levels, bool absorb) {
         slot.Z.mat(n, 0);
       } else {
         PivotedQR& f = null == Null::kFact ? slot.fact : slot.null_qr;
-        if (Z) {
+        if (f.rank() >= r) {
+          slot.Z.mat(n, 0);  // nothing left free
+        } else if (Z && f.rank() == 0) {
+          slot.Z.mat(n, r) = Zm;  // the same set
+        } else if (Z) {
           // Z N = (Z Q)[:, rank:]: the reflectors applied to Z from the right, cheaper than
           // forming N and multiplying (n r rank against n r (r - rank) products)
           const Index c = r - f.rank();

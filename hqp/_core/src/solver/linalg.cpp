@@ -204,7 +204,7 @@ CMapM PivotedQR::null() {
       const CMapM QR = qr_.matrixQR();
       const CMapV tau = qr_.hCoeffs();
       MapV wsn = wsn_.vec(c);
-      for (Index i = tau.size() - 1; i >= 0; --i) {
+      for (Index i = std::min<Index>(rank_, tau.size()) - 1; i >= 0; --i) {
         N.bottomRows(r_ - i).applyHouseholderOnTheLeft(QR.col(i).tail(r_ - i - 1), tau(i),
                                                        wsn.data());
       }
@@ -219,7 +219,7 @@ void PivotedQR::apply_q(VecRef v) {
   const CMapM QR = qr_.matrixQR();
   const CMapV tau = qr_.hCoeffs();
   MapV ws = ws_.vec(1);
-  for (Index i = tau.size() - 1; i >= 0; --i) {
+  for (Index i = std::min<Index>(rank_, tau.size()) - 1; i >= 0; --i) {
     v.tail(r_ - i).applyHouseholderOnTheLeft(QR.col(i).tail(r_ - i - 1), tau(i), ws.data());
   }
 }
@@ -229,7 +229,7 @@ void PivotedQR::apply_qt(VecRef v) {
   const CMapM QR = qr_.matrixQR();
   const CMapV tau = qr_.hCoeffs();
   MapV ws = ws_.vec(1);
-  for (Index i = 0; i < tau.size(); ++i) {
+  for (Index i = 0; i < std::min<Index>(rank_, tau.size()); ++i) {
     v.tail(r_ - i).applyHouseholderOnTheLeft(QR.col(i).tail(r_ - i - 1), tau(i), ws.data());
   }
 }
@@ -239,7 +239,7 @@ void PivotedQR::apply_q_right(MatRef A) {
   const CMapM QR = qr_.matrixQR();
   const CMapV tau = qr_.hCoeffs();
   MapV wsr = wsr_.vec(A.rows());
-  for (Index i = 0; i < tau.size(); ++i) {
+  for (Index i = 0; i < std::min<Index>(rank_, tau.size()); ++i) {
     A.rightCols(r_ - i).applyHouseholderOnTheRight(QR.col(i).tail(r_ - i - 1), tau(i),
                                                     wsr.data());
   }

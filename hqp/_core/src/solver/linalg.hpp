@@ -158,6 +158,10 @@ class TriangularSingularValues {
 /// on the rows of M, as LAPACK's dgeqp3 in the Python reference).
 ///
 /// Rank: the number of |R_ii| above rank_tol * max(|R_00|, scale).
+///
+/// Q is applied as its first `rank` reflectors Q' = H_0 ... H_{rank-1}: the later ones leave
+/// Q's first rank columns (the range of M^T) unchanged, so Q' has the same first columns and
+/// its others span the same null space (another orthonormal basis of it).
 class PivotedQR {
  public:
   /// Capacity for M up to (m, r); `right_rows`: the rows of the matrices given to
