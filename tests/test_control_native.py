@@ -263,6 +263,30 @@ def test_a_native_step_runs_one_pinocchio_pass():
     np.testing.assert_array_equal(nat.model.frame_jacobian(frame), py.model.frame_jacobian(frame))
 
 
+def test_the_centre_of_mass_is_read_from_the_native_pass():
+    """After a native step the Python model's centre of mass and its velocity (what behaviors
+    read every step) come from the core's pass at the same state: no second pinocchio pass,
+    the Python pass's values; the next update forgets them."""
+    robot, nat, py = _pair("g1", "residuals")
+    for t, state in _states(robot, nat.model, 4, seed=13):
+        nat.step(state, t)
+        py.step(state, t)
+        if nat.native.steps:
+            for name in ("com", "com_velocity"):
+                np.testing.assert_allclose(getattr(nat.model, name), getattr(py.model, name),
+                                           rtol=0, atol=1e-12)
+            assert nat.model._pending  # read without the Python pass
+            with pytest.raises(ValueError):  # the core's values, read only
+                nat.model.com[0] = 0.0
+    assert nat.native.steps >= 3
+    q = robot.q_standing.copy()
+    q[7] += 0.1
+    nat.model.update(q, np.zeros(nat.model.nv), defer=True)
+    py.model.update(q, np.zeros(py.model.nv))
+    np.testing.assert_array_equal(nat.model.com, py.model.com)  # its own pass now
+    assert not nat.model._pending
+
+
 def _operational_tasks(robot, ctrl):
     """Gaze at a point ahead, a hand held in its pose, a foot's hybrid force/position rows,
     the feet's internal forces and a weighted effort term: (level, task) pairs."""

@@ -442,6 +442,15 @@ class NativeStepMirror:
         for task in self._error_tasks:
             self.record_error(task)
 
+    def quantity(self, name: str) -> np.ndarray | None:
+        """A quantity of the last step's model pass (``RobotModel.provide``; ``None``: not one
+        the core gives): ``"com"``, ``"com_velocity"``."""
+        if name == "com":
+            return self.step_core.com_state()[0]
+        if name == "com_velocity":
+            return self.step_core.com_state()[1]
+        return None
+
     def record_error(self, task: Any) -> None:
         """Record one task's error of the last native step (see :meth:`record_errors`)."""
         handle = self._error_handles[id(task)]

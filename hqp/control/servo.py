@@ -487,6 +487,7 @@ class WholeBodyController(Controller):
             self._native_failure = str(exc).splitlines()[0] if str(exc) else "failed"
             return None
         mirror.record_errors(ErrorSource(mirror, self, self.step_serial))
+        self.model.provide(mirror.quantity)  # the core's pass at this state, for readers
         t3 = clock()
         self.native.steps += 1
         self._rate_ref = tau.copy()

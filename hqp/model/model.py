@@ -59,6 +59,9 @@ def _computed(name: str, doc: str) -> property:
 
     def get(self: RobotModel) -> np.ndarray:
         if self._pending:
+            value = self._provided(name)
+            if value is not None:
+                return value
             self._compute()
         return getattr(self, attr)  # type: ignore[no-any-return]
 
@@ -97,6 +100,8 @@ class RobotModel:
         self.model = model
         self._data = model.createData()
         self._pending = False  # an update whose pinocchio pass waits for its first reader
+        self._provider: Callable[[str], np.ndarray | None] | None = None
+        self._provided_cache: dict[str, np.ndarray] = {}
         self.name = name
         self.source: Any = None
         """The bundled robot this model was built from (``Robot.model()`` sets it; ``None``
@@ -258,9 +263,34 @@ class RobotModel:
         self.v = v.copy()
         self._frame_cache.clear()
         self._step_cache.clear()
+        self._provider = None
+        self._provided_cache.clear()
         self._pending = True
         if not defer:
             self._compute()
+
+    def provide(self, provider: Callable[[str], np.ndarray | None]) -> None:
+        """Take some quantities of a deferred update from a pass made elsewhere.
+
+        The native step makes the pinocchio pass of this update's state in C++: where a
+        reader asks for a quantity it has (the centre of mass and its velocity), the model
+        takes it from there instead of running its own pass. ``provider(name)`` returns the
+        quantity at this update's ``(q, v)``, or ``None``; it is forgotten at the next update.
+        """
+        if self._pending:
+            self._provider = provider
+
+    def _provided(self, name: str) -> np.ndarray | None:
+        """A quantity of the pending update from the provider (``None``: none there)."""
+        if self._provider is None:
+            return None
+        value = self._provided_cache.get(name)
+        if value is None:
+            value = self._provider(name)
+            if value is not None:
+                value.setflags(write=False)
+                self._provided_cache[name] = value
+        return value
 
     def _compute(self) -> None:
         """Run the update's one pinocchio pass at ``(self.q, self.v)``."""

@@ -241,6 +241,13 @@ inline void bind_step(nb::module_& m) {
           },
           "(cost, sigma_min) of each built level of the last step.")
       .def(
+          "com_state",
+          [](const NativeStep& s) {
+            return nb::make_tuple(Eigen::Vector3d(s.robot().com()),
+                                  Eigen::Vector3d(s.robot().com_velocity()));
+          },
+          "(centre of mass (3,) [m], its velocity (3,) [m/s]) at the last step's state.")
+      .def(
           "report_data",
           [](const NativeStep& s) {
             const int L = s.level_count();
