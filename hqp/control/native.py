@@ -444,7 +444,8 @@ class NativeStepMirror:
 
     def quantity(self, name: str) -> np.ndarray | None:
         """A quantity of the last step's model pass (``RobotModel.provide``; ``None``: not one
-        the core gives): ``"com"``, ``"com_velocity"``."""
+        the core gives): ``"com"``, ``"com_velocity"``.
+        """
         if name == "com":
             return self.step_core.com_state()[0]
         if name == "com_velocity":
