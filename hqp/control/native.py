@@ -443,8 +443,9 @@ class NativeStepMirror:
             self.record_error(task)
 
     def quantity(self, name: str) -> np.ndarray | None:
-        """A quantity of the last step's model pass (``RobotModel.provide``; ``None``: not one
-        the core gives): ``"com"``, ``"com_velocity"``.
+        """Return a quantity of the last step's model pass (``RobotModel.provide``).
+
+        ``"com"`` or ``"com_velocity"``; ``None`` for a quantity the core does not give.
         """
         if name == "com":
             return self.step_core.com_state()[0]

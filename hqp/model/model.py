@@ -281,7 +281,7 @@ class RobotModel:
             self._provider = provider
 
     def _provided(self, name: str) -> np.ndarray | None:
-        """A quantity of the pending update from the provider (``None``: none there)."""
+        """Return a quantity of the pending update from the provider (``None``: not there)."""
         if self._provider is None:
             return None
         value = self._provided_cache.get(name)
