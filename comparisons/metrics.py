@@ -108,6 +108,8 @@ class Trace:
         sole_half: Half length and half width of each sole ``(nfeet, 2)`` [m].
         commanded_margin: Signed distance of the commanded support's centre of pressure
             inside the soles' hull ``(N,)`` [m] (``nan``: pulling; ``None``: not reported).
+        tau: Commanded joint torques ``(N, na)`` [N m] (``None``: not recorded); the largest
+            change between consecutive steps is the JSON's ``max_torque_jump_nm``.
         extra: Further named series ``(N, ...)`` for plots (e.g. obstacle distance).
 
     """
@@ -134,6 +136,7 @@ class Trace:
     sole_cop: np.ndarray | None = None
     sole_half: np.ndarray | None = None
     commanded_margin: np.ndarray | None = None
+    tau: np.ndarray | None = None
     extra: dict[str, np.ndarray] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
@@ -277,9 +280,16 @@ def run_metrics(trace: Trace) -> dict[str, float | int | bool | None]:
             int(np.count_nonzero(trace.safe_mode)) if trace.safe_mode is not None else 0
         ),
         "fell": fell(trace),
+        "max_torque_jump_nm": None,
+        "max_torque_jump_t": None,
         "realtime_factor": trace.realtime_factor,
         "contacts": trace.contacts,
     }
+    if trace.tau is not None and len(trace.tau) > 1:
+        jumps = np.abs(np.diff(trace.tau, axis=0)).max(axis=1)
+        k = int(np.argmax(jumps))
+        out["max_torque_jump_nm"] = float(jumps[k])
+        out["max_torque_jump_t"] = float(trace.t[k + 1])
     if trace.hand is not None and trace.hand_goal is not None:
         out["hand_final_distance_cm"] = 1e2 * float(
             np.linalg.norm(trace.hand[-1] - trace.hand_goal[-1])

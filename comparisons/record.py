@@ -100,5 +100,6 @@ def trace_from_log(
         sole_half=None if support is None else support.sole_half,
         commanded_margin=(None if support is None or support.commanded_margin is None
                           else support.commanded_margin[:n]),
+        tau=None if getattr(log, "tau", None) is None else np.asarray(log.tau),
         extra=dict(extra or {}),
     )

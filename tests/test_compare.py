@@ -67,6 +67,18 @@ def test_hand_distance_and_joint_limit_violation() -> None:
     assert joint_limit_violation(np.zeros((2, 2)), -np.ones(2), np.ones(2)) == 0.0
 
 
+def test_the_largest_torque_change_per_step_and_its_time() -> None:
+    n, dt = 11, 0.001
+    tau = np.zeros((n, 2))
+    tau[4:, 1] = 3.0  # a 3 N m step at t = 4 ms
+    tau[8:, 0] = -7.5  # a 7.5 N m step at t = 8 ms: the largest
+    m = run_metrics(_trace(n, dt, tau=tau))
+    np.testing.assert_allclose(m["max_torque_jump_nm"], 7.5, atol=1e-12)
+    np.testing.assert_allclose(m["max_torque_jump_t"], 0.008, atol=1e-12)
+    m = run_metrics(_trace(n, dt))  # no torques recorded
+    assert m["max_torque_jump_nm"] is None and m["max_torque_jump_t"] is None
+
+
 def test_fall_detection() -> None:
     n = 11
     z = np.full(n, 0.9)

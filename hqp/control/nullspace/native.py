@@ -27,6 +27,7 @@ a failed native step (the Python law then fails or succeeds the same way, with i
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from types import SimpleNamespace
 from typing import Any
 
@@ -167,13 +168,15 @@ class NativeLawMirror:
         """Torques of the last step ``(na,)`` [N m]."""
         return self.law.tau
 
-    def record_errors(self) -> None:
+    def record_errors(self, source: Any = None) -> None:
         """Give each task the error of the last step (kernels; zones: active joints, errors).
 
         A zone's ``active`` and :meth:`~hqp.tasks.joint_limit_zone.JointLimitZone.error` are
-        what its ``rows`` leaves them at on the Python step.
+        what its ``rows`` leaves them at on the Python step. With a ``source``
+        (:class:`~hqp.control.native.ErrorSource`), the kernels' tasks fetch theirs when first
+        read (:meth:`~hqp.control.native.NativeStepMirror.record_errors`).
         """
-        self.kernels.record_errors()
+        self.kernels.record_errors(source)
         names = self.model.joint_names
         for source, task in self._zones:
             active, error, _ref = self.law.zone(source)
@@ -198,9 +201,13 @@ class NativeLawMirror:
                 out.append(f"{name}: rows on contact forces not used")
         return out
 
-    def report(self, diagnostics: Diagnostics,
-               notes: list[str]) -> tuple[tuple[TaskStatus, ...], tuple[float, ...]]:
+    def report(self, diagnostics: Diagnostics, notes: list[str]) -> tuple[
+            tuple[TaskStatus, ...] | Callable[[], tuple[TaskStatus, ...]], tuple[float, ...]]:
         """Statuses and level costs of the last step; the rows the law did not use in ``notes``.
+
+        In ``"residuals"`` mode the statuses are a function of none, called when the report's
+        tasks are first read (the step's data copied out now, as
+        :meth:`~hqp.control.native.NativeStepMirror.report`).
 
         As :meth:`~hqp.control.nullspace.resolver.NullSpaceResolver.report`: residuals at
         ``x``, ``sigma_min`` the smallest eigenvalue of the task's ``Lambda^-1`` (its level's
@@ -213,6 +220,21 @@ class NativeLawMirror:
         if full:
             law.diagnose(diagnostics.singular_tolerance)
         residual, eig, flags, level, _start, _count, cost, present = law.report()
+        costs = tuple(float(c) for c, p in zip(cost, present) if p)
+        notes.extend(self._skipped(flags))
+        if not full:  # the statuses made when first read, from the step's data
+            return (lambda: self._statuses(diagnostics, residual, eig, flags, level, False)[0],
+                    costs)
+        statuses, yields = self._statuses(diagnostics, residual, eig, flags, level, True)
+        if yields:  # the level a conflicting task yields to: the Python diagnostics
+            statuses = diagnostics.law_statuses(self.built()[0], self.law_problem(),
+                                                self.law_solution(), self.x)
+        return statuses, costs
+
+    def _statuses(self, diagnostics: Diagnostics, residual: np.ndarray, eig: np.ndarray,
+                  flags: np.ndarray, level: np.ndarray,
+                  full: bool) -> tuple[tuple[TaskStatus, ...], bool]:
+        """Each task's status from the step's data; whether a task in conflict yields (full)."""
         tolerance = diagnostics.tolerance
         out = []
         yields = False
@@ -230,13 +252,7 @@ class NativeLawMirror:
                 status = Feasibility.SATISFIED
             out.append(TaskStatus(self.tasks[s].name, self.levels[s], status, r, None,
                                   float(eig[s])))
-        costs = tuple(float(c) for c, p in zip(cost, present) if p)
-        statuses: tuple[TaskStatus, ...] = tuple(out)
-        if yields:  # the level a conflicting task yields to: the Python diagnostics
-            statuses = diagnostics.law_statuses(self.built()[0], self.law_problem(),
-                                                self.law_solution(), self.x)
-        notes.extend(self._skipped(flags))
-        return statuses, costs
+        return tuple(out), yields
 
     # -- the last step as Python has it ---------------------------------------------------
 

@@ -20,6 +20,7 @@ import numpy as np
 
 from hqp.control.command import Command, FeasibilityReport
 from hqp.control.diagnostics import level_cost
+from hqp.control.native import ErrorSource
 from hqp.control.nullspace.law import EIG_TOL, LawSolution, prioritized_torques
 from hqp.control.nullspace.multicontact import (
     LawProblem,
@@ -288,11 +289,12 @@ class NullSpaceController(WholeBodyController):
         mirror = engine.ready(self, t)
         if mirror is None:
             return None
-        # steady: advance changes nothing but tells contact-aware tasks the active contacts
-        self.stack.advance(self.model, self.layout, self.dt, t, self.last_x)
+        # steady (ready() checked it): advancing tells contact-aware tasks the active contacts
+        self.stack.advance_steady()
         if mirror.step(q, v, t):  # the Python law runs it (and notes why it fails)
             return None
-        mirror.record_errors()
+        mirror.record_errors(ErrorSource(mirror.kernels, self, self.step_serial))
+        self.model.provide(mirror.kernels.quantity)  # the core's pass at this state
         clock = time.perf_counter
         t3 = clock()
         engine.steps += 1
@@ -303,7 +305,10 @@ class NullSpaceController(WholeBodyController):
         qdd, wrenches = self._split(x)
         t4 = clock()
         statuses, costs = mirror.report(self.feasibility, notes)
-        report = FeasibilityReport(tasks=statuses, notes=tuple(notes), level_costs=costs)
+        if callable(statuses):  # made when first read, from the step's data
+            report = FeasibilityReport(notes=notes, level_costs=costs, statuses=statuses)
+        else:
+            report = FeasibilityReport(tasks=statuses, notes=notes, level_costs=costs)
         t5 = clock()
         self.resolver.native(mirror)
         self.last_x = x
