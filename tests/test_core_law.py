@@ -12,11 +12,10 @@ allocations (the checked module), the GIL, and what falls back to the Python law
 from __future__ import annotations
 
 import functools
-import threading
-import time
 
 import numpy as np
 import pytest
+from _threads import assert_runs_beside_python
 
 from hqp import robots
 from hqp.control.nullspace.law import EIG_TOL, prioritized_torques
@@ -370,26 +369,7 @@ def test_a_law_step_in_a_second_thread_leaves_the_first_to_python():
     mirror.kernels.push_goals(1.0)
     law = mirror.law
     assert law.step(q, v, ctrl.dt) == ""
-    done = threading.Event()
-    calls: list[tuple[float, float]] = []
-    ticks: list[float] = []
-
-    def run() -> None:
-        t_end = time.perf_counter() + 0.3
-        while time.perf_counter() < t_end:
-            t0 = time.perf_counter()
-            law.step(q, v, ctrl.dt)
-            calls.append((t0, time.perf_counter()))
-        done.set()
-
-    worker = threading.Thread(target=run)
-    worker.start()
-    while not done.is_set():
-        ticks.append(time.perf_counter())
-    worker.join()
-    stamps = np.asarray(ticks)
-    inside = sum(int(np.count_nonzero((stamps > a) & (stamps < b))) for a, b in calls)
-    assert len(calls) >= 10 and inside > 0, (len(calls), inside)
+    assert_runs_beside_python(lambda: law.step(q, v, ctrl.dt))
 
 
 # -- what runs on the Python law -------------------------------------------------------------

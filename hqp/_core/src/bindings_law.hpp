@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "bindings_release.hpp"
 #include "control/law.hpp"
 #include "solver/linalg.hpp"
 
@@ -30,29 +31,6 @@ inline nb::list levels(const NullSpaceLaw& law) {
     out.append(nb::make_tuple(l.start, l.rows, l.rank, l.free, l.threshold, l.target_norm));
   }
   return out;
-}
-
-/// Runs `call` with the GIL released (and, in the checked module, Eigen's allocation check
-/// on when `forbid_malloc`); returns its error string, or the checked build's assertion.
-template <typename Call>
-std::string released(bool forbid_malloc, Call&& call) {
-  std::string error;
-  nb::gil_scoped_release release;
-#ifdef HQP_CHECK_MALLOC
-  AssertionLog& log = assertion_log();
-  log.count = 0;
-  log.first.clear();
-  set_malloc_allowed(!forbid_malloc);
-  error = call();
-  set_malloc_allowed(true);
-  if (log.count) {
-    error = "eigen assertion (" + std::to_string(log.count) + " in this step): " + log.first;
-  }
-#else
-  (void)forbid_malloc;
-  error = call();
-#endif
-  return error;
 }
 
 }  // namespace law_detail
@@ -86,7 +64,7 @@ inline void bind_law(nb::module_& m) {
               throw LawError("null-space law: eig_tol must be in (0, 1)");
             if (J.cols() != M.rows() || a.size() != J.rows())
               throw LawError("null-space law: level rows J (m, nv) and a (m,) expected");
-            return law_detail::released(forbid_malloc, [&]() {
+            return released(forbid_malloc, "step", [&]() {
               std::string e = law.dynamics(M, h, Js, bs);
               if (!e.empty()) return e;
               law.solve(J, a, starts.data(), Index(starts.size()) - 1, eig_tol);
@@ -175,7 +153,7 @@ inline void bind_law(nb::module_& m) {
               throw LawError("state shapes: expected (" + std::to_string(robot.nq()) + "), (" +
                              std::to_string(robot.nv()) + ")");
             if (!(dt > 0.0)) throw LawError("dt must be > 0");
-            return law_detail::released(forbid_malloc, [&]() { return s.step(q, v, dt); });
+            return released(forbid_malloc, "step", [&]() { return s.step(q, v, dt); });
           },
           nb::arg("q"), nb::arg("v"), nb::arg("dt"), nb::arg("forbid_malloc") = false,
           "One step of the law (GIL released): the NativeStep's model pass and rows, the "
@@ -214,7 +192,7 @@ inline void bind_law(nb::module_& m) {
       .def(
           "diagnose",
           [](NativeLaw& s, double singular_tolerance, bool forbid_malloc) {
-            const std::string error = law_detail::released(forbid_malloc, [&]() {
+            const std::string error = released(forbid_malloc, "step", [&]() {
               s.diagnose(singular_tolerance);
               return std::string();
             });

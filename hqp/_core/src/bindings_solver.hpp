@@ -17,6 +17,7 @@
 #include <memory>
 #include <string>
 
+#include "bindings_release.hpp"
 #include "solver/hierarchy.hpp"
 #include "solver/nnls.hpp"
 
@@ -97,11 +98,7 @@ class PySolver {
       norm.set_norm(n);
     }
     norm.a_scale = 1.0;
-    std::string error;
-    {
-      nb::gil_scoped_release release;
-      error = run(n, Index(L), forbid_malloc);
-    }
+    const std::string error = run(n, Index(L), forbid_malloc);  // (the GIL released)
     if (!error.empty()) return nb::str(error.c_str());
     const auto& res = hierarchy_.results();
     nb::list reports;
@@ -130,21 +127,7 @@ class PySolver {
 
  private:
   std::string run(Index n, Index L, bool forbid_malloc) {
-#ifdef HQP_CHECK_MALLOC
-    AssertionLog& log = assertion_log();
-    log.count = 0;
-    log.first.clear();
-    set_malloc_allowed(!forbid_malloc);
-    std::string error = hierarchy_.solve(n, L);
-    set_malloc_allowed(true);
-    if (log.count) {
-      return "eigen assertion (" + std::to_string(log.count) + " in this solve): " + log.first;
-    }
-    return error;
-#else
-    (void)forbid_malloc;
-    return hierarchy_.solve(n, L);
-#endif
+    return released(forbid_malloc, "solve", [&] { return hierarchy_.solve(n, L); });
   }
 
   Hierarchy hierarchy_;

@@ -13,6 +13,7 @@
 #include <tuple>
 #include <vector>
 
+#include "bindings_release.hpp"
 #include "bindings_tasks.hpp"
 #include "control/step.hpp"
 #include "solver/linalg.hpp"
@@ -185,25 +186,8 @@ inline void bind_step(nb::module_& m) {
                                           std::to_string(s.robot().nq()) + "), (" +
                                           std::to_string(s.robot().nv()) + ")");
             if (!(dt > 0.0)) throw std::invalid_argument("dt must be > 0");
-            std::string error;
-            {
-              nb::gil_scoped_release release;
-#ifdef HQP_CHECK_MALLOC
-              AssertionLog& log = assertion_log();
-              log.count = 0;
-              log.first.clear();
-              set_malloc_allowed(!forbid_malloc);
-              error = s.step(q, v, dt);
-              set_malloc_allowed(true);
-              if (log.count) {
-                error = "eigen assertion (" + std::to_string(log.count) + " in this step): " +
-                        log.first;
-              }
-#else
-              (void)forbid_malloc;
-              error = s.step(q, v, dt);
-#endif
-            }
+            const std::string error =
+                released(forbid_malloc, "step", [&] { return s.step(q, v, dt); });
             if (!error.empty()) throw std::runtime_error(error);
           },
           nb::arg("q"), nb::arg("v"), nb::arg("dt"), nb::arg("forbid_malloc") = false,
