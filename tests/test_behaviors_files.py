@@ -111,6 +111,12 @@ def test_library_files_parse(name: str) -> None:
         ("[phases.b]", "[phases.b]\nblend_time = -0.1", ["phases.b.blend_time", "non-negative"]),
         ('initial = "a"', 'initial = "a"\nmax_joint_acceleration = 2.0',
          ["behavior.max_joint_acceleration", "at least 5 rad/s^2"]),
+        ('initial = "a"', 'initial = "a"\nmax_torque_rate = -1.0',
+         ["behavior.max_torque_rate", "non-negative"]),
+        ('initial = "a"', 'initial = "a"\nmax_torque_rate = "fast"',
+         ["behavior.max_torque_rate"]),
+        ('initial = "a"', 'initial = "a"\nmax_torque_rate = nan',
+         ["behavior.max_torque_rate", "non-negative"]),
     ],
 )
 def test_bad_files_name_file_key_and_expectation(
@@ -134,6 +140,26 @@ def test_phase_controller_options_parse(tmp_path: Path) -> None:
     assert spec.max_joint_acceleration == 150.0
     assert spec.phases["a"].joint_braking == "contacts" and spec.phases["a"].blend_time is None
     assert spec.phases["b"].joint_braking == "airborne" and spec.phases["b"].blend_time == 0.0
+
+
+@pytest.mark.parametrize(("line", "parsed", "controller_rate"), [
+    ("", None, 4000.0),  # the default level (hqp.control.servo.MAX_TORQUE_RATE)
+    ("max_torque_rate = 12000.0", 12000.0, 12000.0),
+    ("max_torque_rate = 0", 0.0, None),  # 0: no torque-rate level
+])
+def test_the_torque_rate_level_of_a_behavior_file(tmp_path: Path, line: str, parsed,
+                                                 controller_rate) -> None:
+    from hqp.behaviors.setup import prepare
+
+    text = GOOD.replace('initial = "a"', f'initial = "a"\n{line}', 1)
+    spec = load(tmp_path, text)
+    assert spec.max_torque_rate == parsed
+    _behavior, ctrl, _robot = prepare(spec, robot="paper-humanoid")
+    rate = ctrl.max_torque_rate
+    if controller_rate is None:
+        assert rate is None
+    else:
+        np.testing.assert_array_equal(rate, controller_rate)
 
 
 def test_unreachable_phase_is_an_error(tmp_path: Path) -> None:

@@ -102,6 +102,10 @@ def test_library_behavior_runs_without_falling(name: str) -> None:
     duration = {"stand": 1.0, "mimic": 2.5, "screwgun": 3.5}[name]
     result = run_behavior(name, duration=duration)
     check_upright(result)
+    # the default torque-rate level (4 N m per 1 ms step; 8.4 N m in mimic and 6.6 in
+    # screwgun before session 17); no flight, so no impact
+    assert result.metrics["max_torque_jump_nm"] < 5.0
+    assert result.metrics["impacts"] == []
     if name == "mimic":
         assert result.phases[:3] == ["stand", "arms_forward", "wave"]
     if name == "screwgun":
@@ -132,6 +136,17 @@ def test_squat_jump_flies_and_lands_standing(tmp_path: Path) -> None:
     assert result.metrics["flight_clearance_m"] > 0.0
     assert result.metrics["pelvis_min_m"] > 0.75  # [m]
     assert result.metrics["task_errors"]["recover"]["trunk_upright"]["final"] < 0.05  # [rad]
+    # the file's torque-rate level, 20 N m per step, holds over the whole run, the landing
+    # included (153-298 N m in one step at the landing before session 17); the landing is
+    # reported apart
+    assert result.metrics["max_torque_jump_nm"] <= 20.0 + 1e-6
+    impacts = result.metrics["impacts"]
+    assert len(impacts) >= 1
+    landing = impacts[0]
+    assert 0.0 <= landing["max_torque_jump_t"] - landing["t"] <= 0.05 + 1e-9
+    assert landing["max_torque_jump_nm"] <= result.metrics["max_torque_jump_nm"]
+    assert result.metrics["max_torque_jump_outside_impacts_nm"] <= result.metrics[
+        "max_torque_jump_nm"]
 
 
 def test_squat_jump_infeasible_push_enters_the_safety_phase_on_its_feet() -> None:

@@ -26,6 +26,7 @@ task projected on what the physics and the contacts leave free), so that it filt
 def _reaching(name="g1", **kw):
     """A standing controller with the right hand sent 1.5 m ahead (out of reach)."""
     robot = robots.load(name)
+    kw.setdefault("max_torque_rate", None)  # the stack's levels alone, as the oracles build
     ctrl = standing_controller(robot, backend="daqp", **kw)
     model = ctrl.model
     hand = PositionTask(model, robot.hands[1], name="hand", kp=30.0)

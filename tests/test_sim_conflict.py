@@ -3,13 +3,15 @@ allows and an unreachable hand goal, on every bundled robot (slow: MuJoCo).
 
 What a strict hierarchy owes its user there: no safe-mode step, no joint past its limit, a
 command an actuator can follow (per-step torque change under the stated 5 N m at 1 ms).
+The controllers are the defaults: the servo's torque-rate level (4 N m per step) is on in
+every preset since session 17; until then these tests needed it and the approach to the
+braking curve opted in (docs/control.md).
 """
 
 import numpy as np
 import pytest
 
 import hqp.robots as robots
-from hqp.control.servo import MAX_TORQUE_RATE
 from hqp.controller import standing_controller
 from hqp.sim import Event, simulate
 from hqp.tasks.base import Category
@@ -20,11 +22,6 @@ JUMP_NM = 5.0
 
 LIMIT_RAD = 1e-3
 """Stated bound on a joint's excursion past its controller limit [rad]."""
-
-SMOOTH = {"max_torque_rate": MAX_TORQUE_RATE, "braking_approach_time": 0.02}
-"""The servo's torque-rate level and the joint limits' approach to the braking curve (opt-in,
-docs/control.md)."""
-
 
 def _load(name):
     try:
@@ -50,18 +47,12 @@ def _check(log, model, conflicting):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("name", [
-    "paper-humanoid",
-    "g1",
-    # talos passes the same way (4.0 N m per step, no safe-mode step, no joint past a limit;
-    # 32 s of CPU for the 0.8 s run on the native step, session 13): not run, to keep the
-    # suite's cost down
-])
+@pytest.mark.parametrize("name", robots.NAMES)  # talos: 5.6 s of CPU (32 s in session 13)
 def test_a_centre_of_mass_move_faster_than_the_support_allows(name):
     """The CoM goal 5 cm forward in 0.4 s (a min-jerk peak of 1.8 m/s^2, more than the soles'
     centre of pressure allows): the balance level in conflict."""
     robot = _load(name)
-    c = standing_controller(robot, diagnostics="residuals", **SMOOTH)
+    c = standing_controller(robot, diagnostics="residuals")
     com = c.task("com")
 
     def move(sim, ctrl, t):
@@ -77,7 +68,7 @@ def test_a_centre_of_mass_move_faster_than_the_support_allows(name):
 def test_an_unreachable_hand_goal(name):
     """The right hand sent 1.5 m ahead of the pelvis (out of reach) and held there."""
     robot = _load(name)
-    c = standing_controller(robot, diagnostics="residuals", **SMOOTH)
+    c = standing_controller(robot, diagnostics="residuals")
     model = c.model
     hand = PositionTask(model, robot.hands[1], name="hand", kp=30.0)
     model.update(robot.q_standing, np.zeros(model.nv))

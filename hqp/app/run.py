@@ -7,8 +7,9 @@ through :func:`hqp.sim.closed_loop` (clock ``k dt``). Measured and reported (the
 foot out of contact for at least 0.1 s that lands at least 0.10 m ahead of where it lifted),
 the feasibility events, the longest flight (no foot in contact) and the highest the lower foot
 site rose during flights (``flight_clearance_m``), the largest ratio of a commanded torque to
-its limit, and for planned behaviors the mean forward speed and the largest horizontal
-centre-of-mass tracking error.
+its limit, the largest per-step torque change (``max_torque_jump_nm``; the landings after a
+flight apart: ``impacts`` and ``max_torque_jump_outside_impacts_nm``), and for planned
+behaviors the mean forward speed and the largest horizontal centre-of-mass tracking error.
 """
 
 from __future__ import annotations
@@ -39,6 +40,9 @@ STEP_MIN_AIR_TIME = 0.1
 """A footstep: the swing foot is out of contact at least this long [s] ..."""
 STEP_MIN_ADVANCE = 0.10
 """... and lands at least this far ahead (world x) of where it lifted [m]."""
+IMPACT_WINDOW_S = 0.05
+"""The steps of an impact: commands at most this long after a foot meets the floor at the
+end of a flight (no foot in contact) [s]; their torque changes are reported apart."""
 
 
 @dataclass
@@ -109,6 +113,8 @@ class _Meter:
         self.x_start = self.model.com[0]
         self.tau_prev: np.ndarray | None = None
         self.tau_jump, self.tau_jump_t = 0.0, None
+        self.jumps: list[tuple[float, float]] = []  # (t, per-step torque change) of each step
+        self.landings: list[float] = []  # times a foot met the floor after a flight [s]
         self.step_times: list[float] = []
         self.ratio = 0.0
         self.trace: dict[str, list[Any]] | None = (
@@ -125,6 +131,7 @@ class _Meter:
         self.torque_ratio = max(self.torque_ratio, self.ratio)
         if self.tau_prev is not None:
             jump = float(np.max(np.abs(cmd.tau - self.tau_prev)))
+            self.jumps.append((t, jump))
             if jump > self.tau_jump:
                 self.tau_jump, self.tau_jump_t = jump, t
         self.tau_prev = cmd.tau
@@ -142,6 +149,7 @@ class _Meter:
         elif not airborne and self.flight:
             self.flight = False
             self.max_flight = max(self.max_flight, t_new - self.flight_start)
+            self.landings.append(t_new)
         if airborne:
             self.clearance = max(self.clearance, float(np.min(reading.foot_position[:, 2])))
         if self.trace is not None:
@@ -175,6 +183,7 @@ class _Meter:
             "max_torque_ratio": round(self.torque_ratio, 4),
             "max_torque_jump_nm": round(self.tau_jump, 3),
             "max_torque_jump_t": None if self.tau_jump_t is None else round(self.tau_jump_t, 3),
+            **self._impact_metrics(),
             "controller_clipped_steps": self.clipped,
             "sim_clipped_torques": int(self.sim.clip_count),
             "safe_mode_steps": self.safe_steps,
@@ -189,6 +198,30 @@ class _Meter:
         if self.behavior.planner is not None:
             metrics.update(self._walk_metrics(t_end))
         return metrics
+
+    def _impact_metrics(self) -> dict[str, Any]:
+        """Return the torque changes of the impacts (landings after a flight), apart.
+
+        A step belongs to an impact when its command comes at most :data:`IMPACT_WINDOW_S`
+        after a landing: ``impacts`` lists each landing with its largest per-step torque
+        change, ``max_torque_jump_outside_impacts_nm`` is the largest of the other steps.
+        """
+        impacts = []
+        inside = np.zeros(len(self.jumps), dtype=bool)
+        t = np.array([tj for tj, _ in self.jumps])
+        jump = np.array([j for _, j in self.jumps])
+        for t_land in self.landings:
+            window = (t >= t_land - 1e-9) & (t <= t_land + IMPACT_WINDOW_S + 1e-9)
+            inside |= window
+            k = int(np.argmax(np.where(window, jump, -1.0))) if window.any() else None
+            impacts.append({
+                "t": round(t_land, 4),
+                "max_torque_jump_nm": None if k is None else round(float(jump[k]), 3),
+                "max_torque_jump_t": None if k is None else round(float(t[k]), 4)})
+        rest = jump[~inside]
+        return {"impacts": impacts,
+                "max_torque_jump_outside_impacts_nm": round(float(rest.max()), 3)
+                if rest.size else 0.0}
 
     def _walk_metrics(self, t_end: float) -> dict[str, Any]:
         x_end = self.model.com[0]
@@ -407,6 +440,10 @@ def _summary(data: dict[str, Any]) -> str:
         f"  max |tau|/tau_max: {data['max_torque_ratio']:.2f}, largest torque change in one "
         f"step: {data['max_torque_jump_nm']:.1f} N m",
     ]
+    for impact in data.get("impacts", []):
+        lines.append(f"  landing at {impact['t']:.3f} s: largest torque change in one step "
+                     f"within {1e3 * IMPACT_WINDOW_S:.0f} ms {impact['max_torque_jump_nm']} N m; "
+                     f"outside the landings {data['max_torque_jump_outside_impacts_nm']:.1f} N m")
     if "mean_speed_m_s" in data:
         speed = round(data["mean_speed_m_s"], 3) or 0.0  # no "-0.000"
         lines.append(f"  mean speed {speed:.3f} m/s, CoM tracking error max "

@@ -186,7 +186,8 @@ def parse_behavior(
                         ramp_time [s], unload_time [s], safety (default safety phase),
                         inputs_file (default inputs, relative to the file),
                         backend (QP backend of the HQP controller),
-                        max_joint_acceleration [rad/s^2] (HQP joint-acceleration clip)
+                        max_joint_acceleration [rad/s^2] (HQP joint-acceleration clip),
+                        max_torque_rate [N m/s] (HQP torque-rate level; 0: none)
         [contacts]      optional: contact name = frame (default: the robot's contacts)
         [inputs.NAME]   shape, default, interpolate, description   -> input.NAME
         [tasks.NAME]    type, level (int or category), weight, then the type's
@@ -250,6 +251,7 @@ def parse_behavior(
         robot=head["robot"], ramp_time=head["ramp_time"], unload_time=head["unload_time"],
         path=path, contact_frames=contact_frames, poses=poses, inputs_file=head["inputs_file"],
         backend=head["backend"], max_joint_acceleration=head["max_joint_acceleration"],
+        max_torque_rate=head["max_torque_rate"],
     )
 
 
@@ -261,7 +263,7 @@ def _head(ctx: _Ctx, data: Mapping[str, Any], path: Path | None) -> dict[str, An
     head = _table(ctx, data, ("behavior",), required=True)
     _check_keys(ctx, head, ("behavior",), {
         "name", "description", "initial", "duration", "robot", "ramp_time", "unload_time",
-        "safety", "inputs_file", "backend", "max_joint_acceleration",
+        "safety", "inputs_file", "backend", "max_joint_acceleration", "max_torque_rate",
     })
     out: dict[str, Any] = {
         "name": _get(ctx, head, ("behavior", "name"), str,
@@ -282,6 +284,9 @@ def _head(ctx: _Ctx, data: Mapping[str, Any], path: Path | None) -> dict[str, An
         if max_qdd < 5.0:
             raise ctx.error(("behavior", "max_joint_acceleration"),
                             f"expected at least 5 rad/s^2, got {max_qdd}")
+    max_rate = None
+    if "max_torque_rate" in head:
+        max_rate = _positive(ctx, head, ("behavior", "max_torque_rate"), 0.0, allow_zero=True)
     if backend is not None:
         if backend not in known_backends():
             raise ctx.error(("behavior", "backend"), f"unknown QP backend {backend!r}; "
@@ -293,7 +298,8 @@ def _head(ctx: _Ctx, data: Mapping[str, Any], path: Path | None) -> dict[str, An
         if not inputs_path.is_file():
             raise ctx.error(("behavior", "inputs_file"), f"no such file {str(inputs_path)!r}; "
                             "expected a JSON Lines file of timed inputs")
-    out.update(inputs_file=inputs_path, backend=backend, max_joint_acceleration=max_qdd)
+    out.update(inputs_file=inputs_path, backend=backend, max_joint_acceleration=max_qdd,
+               max_torque_rate=max_rate)
     return out
 
 

@@ -23,6 +23,7 @@ from hqp.behaviors.loader import file_error, load_behavior
 from hqp.behaviors.planners import PlacoWalkPlanner
 from hqp.behaviors.spec import BehaviorSpec, InputSpec
 from hqp.control.presets import constraint_controller
+from hqp.control.servo import MAX_TORQUE_RATE
 from hqp.errors import BehaviorFileError, HQPError, InvalidInput, UnknownName
 
 
@@ -33,6 +34,7 @@ def build_controller(
     diagnostics: str = "residuals",
     backend: str | None = None,
     max_joint_acceleration: float | None = None,
+    max_torque_rate: float | None = MAX_TORQUE_RATE,
 ) -> Any:
     """Build a whole-body controller holding only the constraint levels of docs/architecture.md.
 
@@ -48,13 +50,23 @@ def build_controller(
         backend: QP backend of the HQP controller (``None``: its default).
         max_joint_acceleration: Clip of the HQP controller's joint-acceleration bounds
             [rad/s^2] (``None``: its default; the null-space law has activation zones instead).
+        max_torque_rate: The HQP servo's torque-rate level [N m/s] (``None``: none; the
+            null-space law has none).
 
     Raises:
         UnknownName: Unknown controller.
 
     """
     return constraint_controller(controller, robot, diagnostics=diagnostics, backend=backend,
-                                 max_joint_acceleration=max_joint_acceleration)
+                                 max_joint_acceleration=max_joint_acceleration,
+                                 max_torque_rate=max_torque_rate)
+
+
+def _torque_rate(spec: BehaviorSpec) -> float | None:
+    """Return the behavior's torque-rate level [N m/s]: its file's, else the default."""
+    if spec.max_torque_rate is None:
+        return MAX_TORQUE_RATE
+    return spec.max_torque_rate or None
 
 
 def _contacts_of(spec: BehaviorSpec, robot: Any) -> dict[str, str]:
@@ -173,7 +185,8 @@ def prepare(
     robot_obj = robots.load(robot or spec.robot)
     ctrl = build_controller(robot_obj, controller,
                             backend=backend if backend is not None else spec.backend,
-                            max_joint_acceleration=spec.max_joint_acceleration)
+                            max_joint_acceleration=spec.max_joint_acceleration,
+                            max_torque_rate=_torque_rate(spec))
     model = ctrl.model
     contacts = _contacts_of(spec, robot_obj)
     declared = set(ctrl.stack.contacts)

@@ -192,6 +192,8 @@ class BehaviorSpec:
         max_joint_acceleration: Upper clip of the HQP controller's joint-acceleration
             bounds [rad/s^2] (``None``: the controller's default, see
             :func:`hqp.controller.standing_stack`).
+        max_torque_rate: The HQP servo's torque-rate level [N m/s] (``None``: the
+            controller's default, :data:`hqp.control.servo.MAX_TORQUE_RATE`; ``0``: none).
 
     """
 
@@ -212,6 +214,7 @@ class BehaviorSpec:
     inputs_file: Path | None = None
     backend: str | None = None
     max_joint_acceleration: float | None = None
+    max_torque_rate: float | None = None
 
     def phase_enum(self) -> type[enum.Enum]:
         """Return an :class:`enum.Enum` of the phases (values: the phase names, in file order)."""

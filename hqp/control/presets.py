@@ -18,7 +18,7 @@ import numpy as np
 
 from hqp.control.nullspace.law import EIG_TOL
 from hqp.control.nullspace.resolver import NullSpaceController
-from hqp.control.servo import Controller, WholeBodyController
+from hqp.control.servo import MAX_TORQUE_RATE, Controller, WholeBodyController
 from hqp.errors import InvalidGain, InvalidInput, UnknownName
 from hqp.model.layout import ContactType
 from hqp.stack import Stack
@@ -325,15 +325,18 @@ class ControllerKind:
         joint_limits: The joint-limit handling of its constraint levels (:data:`JOINT_LIMITS`).
         build: ``(model, contacts, stack, **options) -> Controller`` (options: the
             controller's keyword arguments).
+        torque_rate: Whether it takes the servo's torque-rate level (``max_torque_rate``;
+            the HQP resolver only: the null-space law has no inequality levels).
 
     """
 
     joint_limits: str
     build: Callable[..., Controller]
+    torque_rate: bool = False
 
 
 CONTROLLERS: dict[str, ControllerKind] = {
-    "hqp": ControllerKind("viable", _hqp),
+    "hqp": ControllerKind("viable", _hqp, torque_rate=True),
     "nullspace": ControllerKind("zones", _nullspace),
 }
 """The controllers by name: the strict hierarchy of QPs, the papers' null-space law."""
@@ -382,7 +385,7 @@ def standing_controller(
     algorithm: str = "basis",
     diagnostics: str = "full",
     native: bool | None = None,
-    max_torque_rate: float | None = None,
+    max_torque_rate: float | None = MAX_TORQUE_RATE,
     **gains: float,
 ) -> WholeBodyController:
     """Build a :class:`~hqp.control.servo.WholeBodyController` standing on both feet.
@@ -398,6 +401,7 @@ def standing_controller(
         native: Steady steps on the native step (see ``WholeBodyController``; ``None``: where
             it applies).
         max_torque_rate: The servo's torque-rate level [N m/s] (see ``WholeBodyController``;
+            default :data:`~hqp.control.servo.MAX_TORQUE_RATE`, 4 N m per 1 ms step;
             ``None``: none).
         **gains: Keyword arguments of :func:`standing_stack`.
 
@@ -500,6 +504,7 @@ def constraint_controller(
     diagnostics: str = "residuals",
     backend: str | None = None,
     max_joint_acceleration: float | None = None,
+    max_torque_rate: float | None = MAX_TORQUE_RATE,
 ) -> Controller:
     """Build a controller holding only the constraint levels of a humanoid on both feet.
 
@@ -515,6 +520,9 @@ def constraint_controller(
         backend: QP backend of the HQP controller (``None``: its default).
         max_joint_acceleration: Clip of the viable joint-acceleration bounds [rad/s^2]
             (``None``: the default; the null-space law has activation zones instead).
+        max_torque_rate: The HQP servo's torque-rate level [N m/s] (default
+            :data:`~hqp.control.servo.MAX_TORQUE_RATE`; ``None``: none; ignored by a kind
+            without one, :attr:`ControllerKind.torque_rate`).
 
     Raises:
         UnknownName: Unknown controller.
@@ -528,4 +536,6 @@ def constraint_controller(
     stack, contacts = constraint_stack(robot, model, joint_limits=preset.joint_limits,
                                        **limits)
     options: dict[str, Any] = {} if backend is None else {"backend": backend}
+    if preset.torque_rate:
+        options["max_torque_rate"] = max_torque_rate
     return preset.build(model, contacts, stack, dt=dt, diagnostics=diagnostics, **options)

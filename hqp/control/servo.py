@@ -11,7 +11,8 @@ One control step of :class:`WholeBodyController`:
 4. torque blending after changes that cannot be ramped, the torque-limit check;
 5. a :class:`~hqp.control.command.FeasibilityReport` (:mod:`hqp.control.diagnostics`).
 
-The torque-rate level (HQP only, opt-in: ``max_torque_rate``, e.g. :data:`MAX_TORQUE_RATE`):
+The torque-rate level (HQP only: ``max_torque_rate``; off in this class by default, on at
+:data:`MAX_TORQUE_RATE` in every preset, :mod:`hqp.control.presets`):
 after the physics and the contact and torque limits the servo adds one level of its own,
 ``|tau - tau_prev| <= max_torque_rate * dt`` over the actuated joints (``tau_prev``: the
 hierarchy's torques of the previous step), reported as the task ``torque_rate``: an actuator
@@ -541,16 +542,19 @@ class WholeBodyController(Controller):
         """Insert the torque-rate level after the constraint levels (module docstring).
 
         ``tau_ref - d <= T x + t0 <= tau_ref + d`` with ``d = max_torque_rate * dt`` and
-        ``tau = T x + t0`` (:func:`~hqp.tasks.dynamics.torque_map`); none at the first step,
-        for a resolver other than HQP's, or with ``max_torque_rate=None``.
+        ``tau = T x + t0`` (:func:`~hqp.tasks.dynamics.torque_map`); unbounded at the first
+        step (as the native step's level); none for a resolver other than HQP's or with
+        ``max_torque_rate=None``.
         """
-        if (self.max_torque_rate is None or self._rate_ref is None
-                or not isinstance(self.resolver, HQPResolver)):
+        if self.max_torque_rate is None or not isinstance(self.resolver, HQPResolver):
             return built
         T, t0 = torque_map(self.model, self.layout, "WholeBodyController: torque rate")
-        d = self.max_torque_rate * self.dt
-        lower = self._rate_ref - d - t0
-        upper = self._rate_ref + d - t0
+        if self._rate_ref is None:
+            lower, upper = np.full(T.shape[0], -np.inf), np.full(T.shape[0], np.inf)
+        else:
+            d = self.max_torque_rate * self.dt
+            lower = self._rate_ref - d - t0
+            upper = self._rate_ref + d - t0
         k = sum(1 for index in built.level_index if index <= self._rate_after)
         index = max(self._rate_after, 0)
         levels = list(built.levels)
