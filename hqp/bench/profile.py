@@ -58,8 +58,9 @@ def cpu_clock(enabled: bool = True) -> Iterator[None]:
 
 
 def _controller(robot_name: str, backend: str, algorithm: str, diagnostics: str) -> Any:
+    # the controller suite's configuration (suite_controller.RATE_LEVEL: states replayed)
     return standing_controller(load(robot_name), backend=backend, algorithm=algorithm,
-                               diagnostics=diagnostics)
+                               diagnostics=diagnostics, max_torque_rate=None)
 
 
 def phase_table(robot_name: str, steps: int = 200, backend: str = "proxsuite",

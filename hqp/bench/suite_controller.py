@@ -5,7 +5,8 @@ Per robot (``paper-humanoid``, ``g1``, ``talos``), the same states are handed to
 - ``hqp/<algorithm>/<backend>`` (but ``hqp/basis/native``, below):
   :func:`hqp.control.presets.standing_controller` (both soles in
   contact, centre of mass, trunk upright, posture, torque, friction, centre-of-pressure and
-  viable joint limits; ``diagnostics="residuals"``: per-task residual flags, no per-task SVDs);
+  viable joint limits; ``diagnostics="residuals"``: per-task residual flags, no per-task SVDs)
+  without the servo's torque-rate level (:data:`RATE_LEVEL`);
 - ``hqp/basis/native``: the same standing controller on the native step (the default of a
   bundled robot's controller, :class:`hqp.control.native.NativeEngine`: model pass, rows,
   strict hierarchy and torques in one call into the C++ core, the report from its levels);
@@ -53,10 +54,19 @@ from hqp.robots import load as load_robot
 from hqp.solver import ALGORITHMS, available_backends, supports
 
 ROBOTS = ("paper-humanoid", "g1", "talos")
+"""Robots of the suite."""
 
 NATIVE_STEP = "hqp/basis/native"
 """The native core's whole step (the contract's row name): the controller on the native step."""
-"""Robots of the suite."""
+
+RATE_LEVEL: float | None = None
+"""The servo's torque-rate level of the hqp rows: none. The suite's states are recorded steps
+replayed in a cycle, not consecutive steps of one trajectory, and the level bounds a step's
+torques by the previous step's: on them it is in conflict at every step (measured, session 17,
+with the default level: ``hqp/basis/native`` 1.4 / 2.4 / 2.9 ms median on paper-humanoid, g1
+and talos, level costs 382 and 21300 above the tightest configuration), a case a control loop
+never meets. Its cost in closed loop: ``hqp compare``'s ``step_time_median_ms``
+(docs/benchmarks.md)."""
 
 T0 = 1.0
 """Control time of the first measured step [s] (after the stack's task ramps)."""
@@ -116,7 +126,8 @@ class _Stepper:
             self.placo = PlacoStanding(robot, dt)
             self.ctrl = None
         elif name == NATIVE_STEP:
-            self.ctrl = standing_controller(robot, dt=dt, diagnostics="residuals")
+            self.ctrl = standing_controller(robot, dt=dt, diagnostics="residuals",
+                                            max_torque_rate=RATE_LEVEL)
             if self.ctrl.native is None:
                 raise RuntimeError("the standing controller has no native step")
         elif name == "nullspace":
@@ -124,7 +135,7 @@ class _Stepper:
         else:
             _, algorithm, backend = name.split("/")
             self.ctrl = standing_controller(robot, dt=dt, backend=backend, algorithm=algorithm,
-                                            diagnostics="residuals")
+                                            diagnostics="residuals", max_torque_rate=RATE_LEVEL)
 
     def __call__(self) -> object:
         q, v = self.states[self.i % len(self.states)]
