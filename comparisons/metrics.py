@@ -22,7 +22,11 @@ The definitions are those of the command-line contract (docs/architecture.md,
 Per-axis centre-of-gravity errors (``cog_error_x_*``, ``cog_error_y_*``) and
 the number of clipped torque entries (``torque_clipping_count``) and of
 control steps where the controller's solve failed and it sent its safe
-command (``safe_mode_steps``) are added.
+command (``safe_mode_steps``) are added, and with the commanded torques the
+largest per-step torque change (``max_torque_jump_nm``, ``max_torque_jump_t``)
+and the actuator held nearest its limit over the last 0.5 s
+(``torque_ratio_final_max``: the mean of ``|tau| / tau_max`` there, 1 when
+held at saturation; ``torque_ratio_final_joint``).
 
 From the support wrenches MuJoCo exerts on the feet (the floor contacts, or the
 welds of ``"welded"`` mode), when the trace has them:
@@ -110,6 +114,8 @@ class Trace:
             inside the soles' hull ``(N,)`` [m] (``nan``: pulling; ``None``: not reported).
         tau: Commanded joint torques ``(N, na)`` [N m] (``None``: not recorded); the largest
             change between consecutive steps is the JSON's ``max_torque_jump_nm``.
+        tau_max: The torque limits the run's motors had ``(na,)`` [N m] (``None``: not
+            recorded); with ``tau``, the JSON's ``torque_ratio_final_max``.
         extra: Further named series ``(N, ...)`` for plots (e.g. obstacle distance).
 
     """
@@ -137,6 +143,7 @@ class Trace:
     sole_half: np.ndarray | None = None
     commanded_margin: np.ndarray | None = None
     tau: np.ndarray | None = None
+    tau_max: np.ndarray | None = None
     extra: dict[str, np.ndarray] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
@@ -159,6 +166,8 @@ class Trace:
             self.non_foot_floor_contact = np.asarray(self.non_foot_floor_contact, dtype=bool)
             if self.non_foot_floor_contact.shape != (n,):
                 raise InvalidInput("Trace: non_foot_floor_contact must have shape (N,)")
+        if self.tau_max is not None:
+            self.tau_max = check_array(self.tau_max, (na,), "Trace: tau_max", allow_inf=True)
         if self.torque_clipped is not None:
             self.torque_clipped = check_array(self.torque_clipped, (n,), "Trace: torque_clipped")
         if self.step_ms is not None:
@@ -252,6 +261,26 @@ def support_metrics(trace: Trace) -> dict[str, float | None]:
     return out
 
 
+def saturation_metrics(trace: Trace, last: np.ndarray) -> dict[str, float | str | None]:
+    """Whether an actuator is held at its limit at the end of the run.
+
+    ``torque_ratio_final_max``: the largest, over the joints, of the mean of ``|tau| / tau_max``
+    over the final window (1: held at saturation the whole window), and its joint
+    ``torque_ratio_final_joint`` (``None`` without torques or limits).
+    """
+    out: dict[str, float | str | None] = {"torque_ratio_final_max": None,
+                                          "torque_ratio_final_joint": None}
+    if trace.tau is None or trace.tau_max is None:
+        return out
+    tau = np.abs(np.asarray(trace.tau, dtype=float)[last])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.where(trace.tau_max > 0, tau / trace.tau_max, 0.0).mean(axis=0)
+    j = int(np.argmax(ratio))
+    out["torque_ratio_final_max"] = float(ratio[j])
+    out["torque_ratio_final_joint"] = trace.joint_names[j]
+    return out
+
+
 def run_metrics(trace: Trace) -> dict[str, float | int | bool | None]:
     """Return the metrics of one run (module docstring), as JSON-ready Python scalars."""
     err = trace.cog_error
@@ -290,6 +319,7 @@ def run_metrics(trace: Trace) -> dict[str, float | int | bool | None]:
         k = int(np.argmax(jumps))
         out["max_torque_jump_nm"] = float(jumps[k])
         out["max_torque_jump_t"] = float(trace.t[k + 1])
+    out.update(saturation_metrics(trace, last))
     if trace.hand is not None and trace.hand_goal is not None:
         out["hand_final_distance_cm"] = 1e2 * float(
             np.linalg.norm(trace.hand[-1] - trace.hand_goal[-1])

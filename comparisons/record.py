@@ -51,6 +51,7 @@ def trace_from_log(
     hand_goal: np.ndarray | None = None,
     extra: Mapping[str, np.ndarray] | None = None,
     support: Any = None,
+    tau_max: np.ndarray | None = None,
 ) -> Trace:
     """Build the trace of a run.
 
@@ -63,6 +64,7 @@ def trace_from_log(
         hand_goal: Its target ``(3,)`` or ``(N, 3)`` [m].
         extra: Further series for plots.
         support: The run's :class:`comparisons.common.Support` (``None``: not recorded).
+        tau_max: The motors' torque limits ``(na,)`` [N m] (``None``: the robot model's).
 
     """
     model = robot.model()
@@ -101,5 +103,6 @@ def trace_from_log(
         commanded_margin=(None if support is None or support.commanded_margin is None
                           else support.commanded_margin[:n]),
         tau=None if getattr(log, "tau", None) is None else np.asarray(log.tau),
+        tau_max=model.tau_max if tau_max is None else np.asarray(tau_max, dtype=float),
         extra=dict(extra or {}),
     )

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from comparisons.metrics import Trace, joint_limit_violation, run_metrics
+from comparisons.metrics import Trace, final_window, joint_limit_violation, run_metrics
 from hqp.errors import HQPError, InvalidInput
 
 
@@ -77,6 +77,20 @@ def test_the_largest_torque_change_per_step_and_its_time() -> None:
     np.testing.assert_allclose(m["max_torque_jump_t"], 0.008, atol=1e-12)
     m = run_metrics(_trace(n, dt))  # no torques recorded
     assert m["max_torque_jump_nm"] is None and m["max_torque_jump_t"] is None
+
+
+def test_an_actuator_held_at_its_limit_at_the_end() -> None:
+    n, dt = 1001, 0.001  # 1 s: the final window is the last 0.5 s
+    tau = np.zeros((n, 2))
+    tau[:, 0] = 5.0  # half of its limit throughout
+    tau[-300:, 1] = -20.0  # at its limit over the last 0.3 s of the window
+    m = run_metrics(_trace(n, dt, tau=tau, tau_max=np.array([10.0, 20.0])))
+    window = int(final_window(np.arange(n) * dt).sum())  # 500 or 501 samples
+    assert 500 <= window <= 501
+    np.testing.assert_allclose(m["torque_ratio_final_max"], 300 / window, atol=1e-12)
+    assert m["torque_ratio_final_joint"] == "b"
+    m = run_metrics(_trace(n, dt, tau=tau))  # no limits recorded
+    assert m["torque_ratio_final_max"] is None and m["torque_ratio_final_joint"] is None
 
 
 def test_fall_detection() -> None:
