@@ -251,6 +251,27 @@ def test_every_scenario_runs_end_to_end(name: str, tmp_path) -> None:
 
 
 @pytest.mark.slow
+@pytest.mark.parametrize("name", ["box-grab", "screwgun"])
+def test_the_hqp_rows_of_box_grab_and_screwgun_at_full_length(name: str) -> None:
+    """docs/scenarios.md's HQP rows (session 17, the servo's torque-rate level on by default):
+    no fall, no safe-mode step, at most 4 N m of torque change per step (the level's bound;
+    without it 277 N m, box-grab passing joint limits by 0.12-0.23 rad and screwgun falling in
+    one of three runs), joints past a limit by at most the measured 2.0e-3 rad (the ankles:
+    docs/control.md; issue 17's 1e-3 is not met here), box-grab's hands on their goals."""
+    from comparisons import get_scenario
+
+    result = get_scenario(name).run(controllers=["hqp"])
+    for run in result.runs:
+        m = run.metrics
+        assert not m["fell"] and m["safe_mode_steps"] == 0, (run.spec, m)
+        assert m["max_torque_jump_nm"] < 4.0 + 1e-3, (run.spec, m["max_torque_jump_t"])
+        assert m["joint_limit_violation_max_rad"] < 2.5e-3, run.spec
+        if name == "box-grab":
+            assert m["hand_final_distance_cm"] < 1e-3, run.spec
+            assert m["left_hand_final_distance_cm"] < 1e-3, run.spec
+
+
+@pytest.mark.slow
 def test_simulation_metrics_are_deterministic() -> None:
     from comparisons import get_scenario
 
