@@ -212,6 +212,36 @@ def test_steps_the_native_step_does_not_run_are_python_steps():
     assert nat.native.steps == steps and "no native kernel" in nat.native.unsupported
 
 
+@pytest.mark.parametrize("name", ["g1", "talos"])
+def test_the_torque_blend_after_a_release_runs_natively(name):
+    """A foot unloaded over 60 ms (the Python step: its force bound changes every step) then
+    released: the decaying-offset torque blend after the release (the stack's blend_time,
+    strictness suspended) runs on the native step from its second step on, with the Python
+    step's levels and blended command (:func:`_same_optimum` where a step is degenerate; without the
+    torque-rate level, see :func:`_pair`)."""
+    robot, nat, py = _pair(name, "residuals", max_torque_rate=None)
+    states = list(_states(robot, nat.model, 260, seed=16, scale=0.001))
+    foot = robot.feet[0]
+    contact = next(c.name for c in nat.layout.contacts if c.frame == foot)
+    blend = strict = 0
+    for k, (t, state) in enumerate(states):
+        if k == 20:
+            for ctrl in (nat, py):
+                ctrl.deactivate_contact(contact, unload_time=0.06)
+        before = nat.native.steps
+        a, b = nat.step(state, t), py.step(state, t)
+        ran_native = nat.native.steps == before + 1
+        assert a.report.strictness_suspended == b.report.strictness_suspended, t
+        if a.report.strictness_suspended and ran_native:
+            blend += 1
+            _same_levels(nat, py, f"{name} t={t}")
+        strict += _same_optimum(nat, py, a, b, f"{name} t={t}", tol=1e-6, sigma_tol=1e-6,
+                                conflict_sigma=False)
+    assert strict >= 0.8 * len(states)
+    # the blend's steps but its first (the release's event: the Python step)
+    assert blend >= round(nat.stack.blend_time / 0.001) - 2 > 0
+
+
 def test_native_needs_a_bundled_robot_model():
     from hqp.control.servo import WholeBodyController
     from hqp.model import RobotModel

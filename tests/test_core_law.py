@@ -415,7 +415,8 @@ def test_what_the_native_law_does_not_run_is_the_python_laws(setting, why):
 
 def test_python_law_steps_between_native_ones():
     """A task ramping in, and the step after the safe command, are the Python law's; the steps
-    after them are native again (and the ramp's last steps equal the Python law's)."""
+    after them are native again (and the ramp's last steps equal the Python law's), the
+    decaying-offset blend out of the safe command included (since session 17)."""
     from hqp.tasks.posture import PostureTask
 
     robot, native, python = _controllers("g1", diagnostics="residuals")
@@ -436,12 +437,15 @@ def test_python_law_steps_between_native_ones():
     t = 1.02
     native.step(state, t)
     assert native.native.steps == steps and native._blend_start is not None
-    while native._blend_start is not None:  # the blend's steps: Python
+    blend = 0
+    while native._blend_start is not None:  # the blend's steps (a decaying offset): native
         t += 0.001
-        native.step(state, t)
-    assert native.native.steps == steps
+        command = native.step(state, t)
+        blend += 1
+        assert command.report.strictness_suspended or native._blend_start is None
+    assert blend > 1 and native.native.steps == steps + blend
     native.step(state, t + 0.001)
-    assert native.native.steps == steps + 1
+    assert native.native.steps == steps + blend + 1
 
 
 def test_the_controller_suite_runs_the_law_natively():

@@ -397,7 +397,10 @@ class WholeBodyController(Controller):
         t0 = clock()
         self.step_serial += 1
         q = self._checked_q(state.q, t)
-        native = self.native is not None and self._blend_start is None
+        # a blend between two hierarchies (a contact made) solves both: the Python step; the
+        # decaying-offset blend only needs this step's torques (the native step's too)
+        native = self.native is not None and (self._blend_start is None
+                                               or self._blend_contact is None)
         # a native step runs its own pinocchio pass: the Python model's waits for a reader
         self.model.update(q, state.v, defer=native)
         t1 = clock()
@@ -494,14 +497,17 @@ class WholeBodyController(Controller):
         self._rate_ref = tau.copy()
         self._was_safe = False
         notes: list[str] = []
+        tau, suspended = self._blend(tau, t, notes)  # a decaying-offset blend (if one runs)
         tau = self._clip(tau, notes)
         qdd, wrenches = self._split(x)
         t4 = clock()
         statuses, costs, built = mirror.report(self.feasibility)
         if callable(statuses):  # made when first read, from the step's data
-            report = FeasibilityReport(notes=notes, level_costs=costs, statuses=statuses)
+            report = FeasibilityReport(notes=notes, level_costs=costs, statuses=statuses,
+                                       strictness_suspended=suspended)
         else:
-            report = FeasibilityReport(tasks=statuses, notes=notes, level_costs=costs)
+            report = FeasibilityReport(tasks=statuses, notes=notes, level_costs=costs,
+                                       strictness_suspended=suspended)
         t5 = clock()
         self.last_x = x
         self.last_t = float(t)

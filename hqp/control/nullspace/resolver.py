@@ -301,14 +301,17 @@ class NullSpaceController(WholeBodyController):
         x, tau = mirror.x, mirror.tau
         self._rate_ref = tau.copy()
         notes: list[str] = []
+        tau, suspended = self._blend(tau, t, notes)  # a decaying-offset blend (if one runs)
         tau = self._clip(tau, notes)
         qdd, wrenches = self._split(x)
         t4 = clock()
         statuses, costs = mirror.report(self.feasibility, notes)
         if callable(statuses):  # made when first read, from the step's data
-            report = FeasibilityReport(notes=notes, level_costs=costs, statuses=statuses)
+            report = FeasibilityReport(notes=notes, level_costs=costs, statuses=statuses,
+                                       strictness_suspended=suspended)
         else:
-            report = FeasibilityReport(tasks=statuses, notes=notes, level_costs=costs)
+            report = FeasibilityReport(tasks=statuses, notes=notes, level_costs=costs,
+                                       strictness_suspended=suspended)
         t5 = clock()
         self.resolver.native(mirror)
         self.last_x = x
