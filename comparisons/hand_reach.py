@@ -213,10 +213,7 @@ class HandReach(Scenario):
                                             torque_scale=self.parameters.torque_scale)
         trace = trace_from_log(rob, log, goals["cog"], hand_frame=rob.hands[1],
                                hand_goal=goals["hand"], support=support,
-                               tau_max=model.tau_max,
-                               extra={"tau": np.asarray(log.tau),
-                                      "tau_max": np.broadcast_to(model.tau_max,
-                                                                 np.shape(log.tau))})
+                               tau_max=model.tau_max)
         return RunResult(spec, limit_metrics(trace), trace, self.panels(trace), note)
 
     # -- figure -----------------------------------------------------------------------------

@@ -39,7 +39,7 @@ def zone_report(run: RunResult, zone: float) -> dict[str, Any]:
     k = int(hit[0]) if hit.size else tr.t.size - 1
     err = 1e3 * np.abs(tr.cog_error[: k + 1])
     dist = 1e2 * np.linalg.norm(tr.hand[: k + 1] - tr.hand_goal[: k + 1], axis=1)
-    tau, tau_max = tr.extra["tau"], tr.extra["tau_max"]
+    tau, tau_max = tr.tau, tr.tau_max
     sat = np.abs(tau) >= 0.999 * tau_max
     saturated = {tr.joint_names[j]: float(tr.t[np.flatnonzero(sat[:, j])[0]])
                  for j in np.flatnonzero(sat.any(axis=0))}

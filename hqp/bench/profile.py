@@ -31,7 +31,7 @@ from typing import Any
 
 import numpy as np
 
-from hqp.bench.suite_controller import T0, states
+from hqp.bench.suite_controller import RATE_LEVEL, T0, states
 from hqp.controller import standing_controller
 from hqp.model import RobotState
 from hqp.robots import load
@@ -58,9 +58,9 @@ def cpu_clock(enabled: bool = True) -> Iterator[None]:
 
 
 def _controller(robot_name: str, backend: str, algorithm: str, diagnostics: str) -> Any:
-    # the controller suite's configuration (suite_controller.RATE_LEVEL: states replayed)
+    # the controller suite's configuration (its RATE_LEVEL: states replayed out of sequence)
     return standing_controller(load(robot_name), backend=backend, algorithm=algorithm,
-                               diagnostics=diagnostics, max_torque_rate=None)
+                               diagnostics=diagnostics, max_torque_rate=RATE_LEVEL)
 
 
 def phase_table(robot_name: str, steps: int = 200, backend: str = "proxsuite",
