@@ -7,6 +7,7 @@ import warnings
 import numpy as np
 import pytest
 import quadprog
+from scipy.optimize import nnls as _nnls
 from test_solver import RANDOM_SHAPES, cost_tol, level_cost, quadprog_cascade, random_levels
 
 from hqp.bench.problems import random_hierarchy
@@ -258,24 +259,52 @@ def test_a_level_below_a_thin_optimal_set_gets_what_is_left(backend):
     np.testing.assert_allclose(sol.x, ref.x, atol=1e-6)
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "open defect (issue 17): the signed multipliers of dependent held rows may use a row "
-    "inside its band; restricting them to rows at their bound changed which guesses verify "
-    "on the recorded steps (warm starts needing more QPs, a posture level 2e-6 off the "
-    "contract on reach@paper-humanoid): not landed"))
-def test_a_dependent_held_row_inside_its_band_takes_no_multiplier():
+def _solve_guess_both(impl, level, carried, w):
+    """One level's active-set warm start by the Python reference or the native twin."""
+    s0 = np.zeros(level.C.shape[0], np.int8)
+    if impl == "python":
+        v, guess, _its = solve_guess(level, carried, Guess(s0, w.astype(np.int8)), 1e-9, 1.0)
+        return v, guess.w
+    core = pytest.importorskip("hqp._core._ext")
+    v, _s, w_last = core.active_set_solve(
+        level.A, level.b, level.C, level.lo, level.up, level.los, level.ups, carried.G,
+        carried.gl, carried.gu, carried.gls, carried.gus, s0.astype(np.int32),
+        w.astype(np.int32), 1e-9, 1.0, 6)
+    return v, w_last
+
+
+@pytest.mark.parametrize("impl", ["python", "native"])
+def test_a_dependent_held_row_inside_its_band_takes_no_multiplier(impl):
     """Held rows v1 <= 0 and -v1 <= 5 (dependent: the same direction), the level asking
-    v = (-1, 0). The guess holding both gives v = (0, 0), where v1 <= 0 has the wrong sign
-    (the cost pulls v1 below 0) and -v1 <= 5 lies inside its band. Letting the inactive row
-    take the multiplier (1, NNLS on both) accepted that non-optimal point; the verified
-    minimiser is (-1, 0) with no row held."""
+    v = (-1, 0). The guess holding both gives v = (0, 0) (or (-5, 0)), where the row solved
+    for has the wrong sign and the other lies inside its band. Letting the inactive row take
+    the multiplier (NNLS on both, sessions 9 to 17) accepted that non-optimal point; the
+    verified minimiser is (-1, 0) with no row held, in the reference and the native core."""
     level = LevelRows(np.eye(2), np.array([-1.0, 0.0]), np.zeros((0, 2)), np.zeros(0),
                       np.zeros(0), np.zeros(0), np.zeros(0))
     G = np.array([[1.0, 0.0], [-1.0, 0.0]])
     carried = CarriedRows(G, np.full(2, -np.inf), np.array([0.0, 5.0]), np.ones(2),
                           np.array([1.0, 5.0]))
-    v, guess, _its = solve_guess(level, carried, Guess(np.zeros(0, np.int8),
-                                                       np.ones(2, np.int8)), 1e-9, 1.0)
+    v, w = _solve_guess_both(impl, level, carried, np.ones(2))
     assert v is not None
     np.testing.assert_allclose(v, [-1.0, 0.0], atol=1e-12)
-    assert not guess.w.any()
+    assert not np.any(w)
+
+
+@pytest.mark.parametrize("impl", ["python", "native"])
+def test_dependent_held_rows_at_their_bound_share_the_multiplier(impl):
+    """A degenerate vertex: v1 <= 0, v2 <= 0 and v1 + v2 <= 0 all held at (0, 0), the level
+    asking v = (1, 2). The triangular solve gives the dependent row no multiplier; NNLS over
+    the three rows at their bound finds the signs right, and the guess verifies at once with
+    the cost's gradient matched by the multipliers (checked here independently)."""
+    level = LevelRows(np.eye(2), np.array([1.0, 2.0]), np.zeros((0, 2)), np.zeros(0),
+                      np.zeros(0), np.zeros(0), np.zeros(0))
+    G = np.array([[1.0, 0.0], [0.0, 1.0], [1.0, 1.0]])
+    carried = CarriedRows(G, np.full(3, -np.inf), np.zeros(3), np.ones(3), np.ones(3))
+    v, w = _solve_guess_both(impl, level, carried, np.ones(3))
+    assert v is not None
+    np.testing.assert_allclose(v, [0.0, 0.0], atol=1e-12)
+    np.testing.assert_array_equal(w, [1, 1, 1])
+    # an independent check: the KKT point of min ||v - (1, 2)||^2 s.t. G v <= 0 is (0, 0)
+    mu, res = _nnls(G.T, -(v - level.b))
+    assert res < 1e-12 and np.all(mu >= 0)

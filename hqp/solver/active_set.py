@@ -221,9 +221,11 @@ def solve_guess(
         w_new = w
         if p:
             wrong = None
+            gv = G @ v
             if rk and nheld:
-                wrong = _wrong_multipliers(M, d, v, K, me, piv, rk, R11, Q1, wp, held)
-            ok_w, w_new = _check_carried_rows(G @ v, w, gl_in, gu_in, dep_g, wrong)
+                wrong = _wrong_multipliers(M, d, v, K, me, piv, rk, R11, Q1, wp, held,
+                                           _inside(gv, held, dep_g, wp, gl, gu, gls, gus))
+            ok_w, w_new = _check_carried_rows(gv, w, gl_in, gu_in, dep_g, wrong)
             ok = ok and ok_w
         if ok:
             return v, Guess(s, w), it + 1
@@ -299,20 +301,35 @@ def _free_least_squares(M: np.ndarray, d: np.ndarray, nv: int, ref: np.ndarray |
     return np.zeros(nv) if ref is None else ref.copy()
 
 
+def _inside(gv: np.ndarray, held: np.ndarray, dep_g: np.ndarray, wp: np.ndarray,
+            gl: np.ndarray, gu: np.ndarray, gls: np.ndarray, gus: np.ndarray) -> np.ndarray:
+    """Return a mask over ``held``: the dependent held rows that lie inside their band.
+
+    A held row the QR found dependent on the others is not solved for; where its value at
+    the point is further than :data:`AT_BOUND_TOL` (times its scale) from the bound it is
+    held at, it is inactive there and takes no multiplier.
+    """
+    inside = np.zeros(held.size, dtype=bool)
+    if dep_g.size:
+        dep = np.isin(held, dep_g)
+        k = np.where(wp, gu[held], gl[held])
+        ks = np.where(wp, gus[held], gls[held])
+        inside = dep & (np.abs(gv[held] - k) > AT_BOUND_TOL * ks)
+    return inside
+
+
 def _wrong_multipliers(M: np.ndarray, d: np.ndarray, v: np.ndarray, K: np.ndarray, me: int,
                        piv: np.ndarray, rk: int, R11: np.ndarray, Q1: np.ndarray,
-                       wp: np.ndarray, held: np.ndarray) -> np.ndarray | None:
-    """Return the held carried rows whose multipliers have the wrong sign (``None``: none).
+                       wp: np.ndarray, held: np.ndarray, inside: np.ndarray
+                       ) -> np.ndarray | None:
+    """Return the held carried rows to release (``None``: the multipliers have right signs).
 
     The multipliers of the independent held rows solve ``K^T mu = -grad`` with ``grad``
     the cost's gradient at ``v``; where they are not unique (dependent held rows),
-    any set of the right signs will do (:func:`_signed_multipliers`).
-
-    Open defect (issue 17): the set may give a multiplier to a dependent held row that lies
-    inside its band (inactive), and so accept a point that is not a minimiser
-    (``test_a_dependent_held_row_inside_its_band_takes_no_multiplier``). Restricting it to
-    the rows at their bound changes which guesses verify on the recorded steps (more QPs,
-    other points of ill-conditioned last levels); not done yet.
+    any set of the right signs over the rows *at their bound* will do
+    (:func:`_signed_multipliers`). A dependent held row inside its band (``inside``) is
+    inactive at ``v`` and takes none; when no such set exists, it is released together
+    with the rows of wrong-sign multipliers.
     """
     grad = M.T @ (M @ v - d)
     mu = np.zeros(K.shape[0])
@@ -320,9 +337,13 @@ def _wrong_multipliers(M: np.ndarray, d: np.ndarray, v: np.ndarray, K: np.ndarra
     mug = mu[me:]
     dtol = DUAL_TOL * _dual_scale(M, d)
     bad_mu = np.where(wp, mug < -dtol, mug > dtol)
-    if bad_mu.any() and not (rk < K.shape[0] and _signed_multipliers(K, me, wp, grad, dtol)):
-        return held[bad_mu]
-    return None
+    if not bad_mu.any():
+        return None
+    if rk < K.shape[0]:
+        at = np.concatenate((np.ones(me, dtype=bool), ~inside))
+        if _signed_multipliers(K[at], me, wp[~inside], grad, dtol):
+            return None
+    return held[bad_mu | inside]
 
 
 def _dual_scale(M: np.ndarray, d: np.ndarray) -> float:

@@ -18,6 +18,7 @@
 #include <string>
 
 #include "bindings_release.hpp"
+#include "solver/active_set.hpp"
 #include "solver/hierarchy.hpp"
 #include "solver/nnls.hpp"
 
@@ -188,6 +189,34 @@ inline void bind_solver(nb::module_& m) {
       "The native solver's non-negative least squares: min ||A x - b||, x >= 0, early exit "
       "at res_tol (< 0: none); returns (x, residual, residual <= res_tol, column entries). "
       "For tests.");
+  m.def(
+      "active_set_solve",
+      [](const Eigen::MatrixXd& A, const Eigen::VectorXd& b, const Eigen::MatrixXd& C,
+         const Eigen::VectorXd& lo, const Eigen::VectorXd& up, const Eigen::VectorXd& los,
+         const Eigen::VectorXd& ups, const Eigen::MatrixXd& G, const Eigen::VectorXd& gl,
+         const Eigen::VectorXd& gu, const Eigen::VectorXd& gls, const Eigen::VectorXd& gus,
+         Eigen::VectorXi s, Eigen::VectorXi w, double rank_tol, double scale, int max_iter) {
+        const Index nv = A.cols();
+        if (C.cols() != nv || G.cols() != nv || b.size() != A.rows() || s.size() != C.rows() ||
+            lo.size() != C.rows() || up.size() != C.rows() || los.size() != C.rows() ||
+            ups.size() != C.rows() || w.size() != G.rows() || gl.size() != G.rows() ||
+            gu.size() != G.rows() || gls.size() != G.rows() || gus.size() != G.rows() ||
+            max_iter < 0)
+          throw std::invalid_argument("active_set_solve: inconsistent shapes");
+        ActiveSetSolver solver;
+        solver.reserve(A.rows(), C.rows(), G.rows(), nv, nv, max_iter);
+        const LevelRows L{A, b, C, lo, up, los, ups};
+        const CarriedRows K{G, gl, gu, gls, gus};
+        Eigen::VectorXd v(nv);
+        const bool ok = solver.solve(L, K, s, w, rank_tol, scale, max_iter, nullptr, v);
+        return nb::make_tuple(ok ? nb::cast(v) : nb::none(), s, w);
+      },
+      nb::arg("A"), nb::arg("b"), nb::arg("C"), nb::arg("lo"), nb::arg("up"), nb::arg("los"),
+      nb::arg("ups"), nb::arg("G"), nb::arg("gl"), nb::arg("gu"), nb::arg("gls"),
+      nb::arg("gus"), nb::arg("s"), nb::arg("w"), nb::arg("rank_tol"), nb::arg("scale"),
+      nb::arg("max_iter"),
+      "The native active-set warm start of one level (hqp.solver.active_set.solve_guess "
+      "without E and ref): returns (v or None, last s, last w). For tests.");
   m.def(
       "qp_stats",
       []() {

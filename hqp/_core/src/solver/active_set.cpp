@@ -38,6 +38,7 @@ void ActiveSetSolver::reserve(Index ma, Index mc, Index p, Index nv, Index n, in
   w_new_.reserve(p);
   dep_g_.reserve(p);
   free_.reserve(p);
+  inside_.reserve(p);
   s_new_.reserve(mc);
   seen_.reserve(mc + p, Index(max_iter) + 1);
   kqr_.reserve(p, nv, mr);
@@ -51,32 +52,39 @@ void ActiveSetSolver::reserve(Index ma, Index mc, Index p, Index nv, Index n, in
 }
 
 bool ActiveSetSolver::signed_multipliers(Index nheld, double dtol) {
-  // Non-negative least squares: min ||B mu + grad||, mu >= 0, with B = K^T diag(sign), warm
+  // Non-negative least squares: min ||B mu + grad||, mu >= 0, with B = K^T diag(sign) over the
+  // held rows at their bound (a dependent held row inside its band, inside_, takes none), warm
   // started from the columns that were positive at the last call on the same carried rows
   const MapM Kh = Kh_.mat();
-  const MapI wp = wp_.vec(), held = held_.vec();
+  const MapI wp = wp_.vec(), held = held_.vec(), inside = inside_.vec();
   const MapV grad = grad_.vec();
   const Index nv = Kh.cols();
-  MapM nn_A = nn_A_.mat(nv, nheld);
+  MapI cols = at_.vec(nheld);
+  Index ncol = 0;
   for (Index j = 0; j < nheld; ++j) {
-    nn_A.col(j) = Kh.row(j).transpose() * (wp(j) > 0 ? 1.0 : -1.0);
+    if (!inside(j)) cols(ncol++) = int(j);
+  }
+  MapM nn_A = nn_A_.mat(nv, ncol);
+  for (Index c = 0; c < ncol; ++c) {
+    const Index j = cols(c);
+    nn_A.col(c) = Kh.row(j).transpose() * (wp(j) > 0 ? 1.0 : -1.0);
   }
   MapV nn_b = nn_b_.vec(nv);
   nn_b = -grad;
   MapI memo = nn_memo_.vec();
   const Index p = memo.size();
   const bool warm = p > 0;
-  MapI nn_warm = nn_warm_.vec(nheld);
-  const CMapI warm_start(nn_warm.data(), nheld);
+  MapI nn_warm = nn_warm_.vec(ncol);
+  const CMapI warm_start(nn_warm.data(), ncol);
   if (warm) {
-    for (Index j = 0; j < nheld; ++j) nn_warm(j) = memo(held(j));
+    for (Index c = 0; c < ncol; ++c) nn_warm(c) = memo(held(cols(c)));
   }
   const double res_tol = dtol * std::max(1.0, std::sqrt(double(grad.size())));
-  const bool ok = nnls_.solve(nn_A, nn_b, res_tol, int(50 * nheld), warm ? &warm_start : nullptr);
+  const bool ok = nnls_.solve(nn_A, nn_b, res_tol, int(50 * ncol), warm ? &warm_start : nullptr);
   if (warm) {
     memo.setZero();
     const CMapI passive = nnls_.passive();
-    for (Index j = 0; j < nheld; ++j) memo(held(j)) = passive(j);
+    for (Index c = 0; c < ncol; ++c) memo(held(cols(c))) = passive(c);
   }
   return ok;
 }
@@ -283,11 +291,22 @@ bool ActiveSetSolver::solve(const LevelRows& L, const CarriedRows& K, IVecRef s,
         for (Index j = 0; j < nheld; ++j) {
           if (wp(j) ? mu(j) < -dtol : mu(j) > dtol) bad_mu = true;
         }
+        // a dependent held row further than kAtBoundTol from its bound is inactive at v
+        MapI inside = inside_.vec(nheld);
+        inside.setZero();
+        for (Index j = 0; j < ndep; ++j) {
+          const Index jj = kqr_.pivot(rk + j);
+          const Index i = held(jj);
+          const double k = wp(jj) ? K.gu(i) : K.gl(i);
+          const double ks = wp(jj) ? K.gus(i) : K.gls(i);
+          if (std::abs(gv(i) - k) > kAtBoundTol * ks) inside(jj) = 1;
+        }
         if (bad_mu && !(rk < nheld && signed_multipliers(nheld, dtol))) {
           any_change = true;
-          // recompute mu: signed_multipliers used grad_ but not mu_
+          // release the rows of wrong-sign multipliers (mu_ is the triangular solve's) and
+          // the inactive dependent rows
           for (Index j = 0; j < nheld; ++j) {
-            if (wp(j) ? mu(j) < -dtol : mu(j) > dtol) w_new(held(j)) = 0;
+            if ((wp(j) ? mu(j) < -dtol : mu(j) > dtol) || inside(j)) w_new(held(j)) = 0;
           }
         }
       }

@@ -69,13 +69,13 @@ class ActiveSetSolver {
   WorkM M_, Kh_, MQ_;
   WorkM zv_;
   WorkM d_, kh_, ksc_, vp_, rhs_, zr_, t_, cv_, gv_, grad_, res_, mu_, tmp_;
-  WorkI held_, wp_, s_new_, w_new_, dep_g_, free_;
+  WorkI held_, wp_, s_new_, w_new_, dep_g_, free_, inside_;
   WorkI seen_;  // the guesses tried: (mc + p, max_iter + 1)
   // NNLS workspace
   Nnls nnls_;
   WorkM nn_A_, nn_b_;
   WorkI nn_warm_, nn_memo_;  // per held row / per carried row: positive at the last call
-  WorkI at_;                 // absorbed(): positions of the held rows at their bound
+  WorkI at_;  // absorbed(), signed_multipliers(): positions of the held rows at their bound
 };
 
 /// The active set of a point: level rows by the side they violate, carried rows held when
