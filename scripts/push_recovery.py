@@ -35,7 +35,8 @@ def main(argv: list[str] | None = None) -> int:
                    help="push directions [deg] (0: forward +x, 90: left +y)")
     p.add_argument("--push-at", type=float, default=0.3, help="start of the push [s]")
     p.add_argument("--push-duration", type=float, default=0.1, help="length of the push [s]")
-    p.add_argument("--duration", type=float, default=2.0, help="length of each run [s]")
+    p.add_argument("--duration", type=float, default=5.0,
+                   help="length of each run [s] (long enough for a slow fall: 2 s was not)")
     p.add_argument("--max-force", type=float, default=800.0, help="upper end of the search [N]")
     p.add_argument("--tolerance", type=float, default=10.0, help="bisection resolution [N]")
     p.add_argument("--backend", default=None,

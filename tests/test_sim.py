@@ -322,16 +322,31 @@ def test_standing_survives_noise_delay_and_a_push():
     assert summary["min_support_margin_m"] > 0.0, summary
 
 
-@pytest.mark.slow
-@pytest.mark.parametrize("force", [(331.0, 0.0, 0.0), (0.0, 375.0, 0.0)],
-                         ids=["forward-331N", "lateral-375N"])
-def test_standing_survives_the_pushes_issue_17_keeps(force):
-    # Issue 17 keeps push recovery at least where it stood: 331 N forward (its figure) and,
-    # since its 400 N lateral no longer holds on main (381.25 N survived, 387.5 N fell,
-    # `scripts/push_recovery.py --directions 0 90`, session 19), 375 N lateral: a 0.1 s push at
-    # 0.3 s, the 2 s run of the push-recovery study, its diagnostics.
+
+def _pushed(force, duration):
     r = robots.load(PAPER)
     c = standing_controller(r, diagnostics="residuals")
-    log = simulate(r, c, 2.0, [Push(0.3, force, 0.1)])
-    summary = log.summary()
-    assert not log.fell and log.clip_count == 0 and not log.safe_mode.any(), summary
+    return simulate(r, c, duration, [Push(0.3, force, 0.1)])  # as the push-recovery study
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("force", [(325.0, 0.0, 0.0), (0.0, 362.5, 0.0)],
+                         ids=["forward-325N", "lateral-362.5N"])
+def test_standing_survives_the_largest_pushes_measured(force):
+    # The largest pushes survived in session 19 (`scripts/push_recovery.py --directions 0 90`,
+    # 5 s runs; 4 s and 6 s give the same brackets, 331.25 N and 368.75 N fall): issue 17's
+    # 331 N forward and 400 N lateral are NOT met once a run is long enough to see a slow
+    # fall (below). This holds the figures where they are.
+    log = _pushed(force, 5.0)
+    assert not log.fell and log.clip_count == 0 and not log.safe_mode.any(), log.summary()
+
+
+@pytest.mark.slow
+def test_a_two_second_window_misses_a_slow_fall():
+    # Why the push-recovery study's runs last 5 s (STANDING["duration"]): 337.5 N forward was
+    # the "largest survived" push of 2 s runs, yet the robot falls at 2.17 s.
+    from hqp.study.simulation import STANDING
+
+    assert not _pushed((337.5, 0.0, 0.0), 2.0).fell
+    log = _pushed((337.5, 0.0, 0.0), STANDING["duration"])
+    assert log.fell and 2.0 < log.fell_at < STANDING["duration"]
