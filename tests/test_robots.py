@@ -463,3 +463,21 @@ def test_placo_loads_the_urdf(name: str) -> None:
             atol=1e-9,
         )
     np.testing.assert_allclose(humanoid.com_world(), model.com, atol=1e-9)
+
+
+def test_generated_files_follow_the_installation(tmp_path, monkeypatch):
+    # Two environments with the same example-robot-data share the generated-files directory;
+    # the MJCF names the meshes by absolute path, so each installation gets its own files
+    # (before session 19 a second venv read the first one's meshes, and failed once it was gone).
+    from hqp.robots import erd
+
+    theirs = hqp.robots.load("g1").mjcf_path
+    real = erd.erd_robots_dir()
+    copy = tmp_path / "robots" / "g1_description"
+    (copy / "urdf").mkdir(parents=True)
+    spec = erd.SPECS["g1"].urdf
+    (tmp_path / "robots" / spec).write_bytes((real / spec).read_bytes())
+    (copy / "meshes").symlink_to(real / "g1_description" / "meshes")
+    monkeypatch.setattr(erd, "erd_robots_dir", lambda: tmp_path / "robots")
+    mine = erd.robot("g1").mjcf_path  # the same URDF, another installation
+    assert mine != theirs and mine.exists() and theirs.exists()

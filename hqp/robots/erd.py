@@ -337,6 +337,9 @@ def robot(name: str) -> Robot:
     pin.framesForwardKinematics(model, data, q)
 
     digest = hashlib.sha256()
+    # the generated files name the meshes by absolute path: the installation is part of the key
+    # (two environments with the same URDF share the temporary directory, not their meshes)
+    digest.update(str(source.resolve()).encode())
     for part in (source, Path(__file__), Path(desc_mod.__file__)):
         digest.update(part.read_bytes())
     digest.update(np.round(q, 9).tobytes())
