@@ -223,7 +223,7 @@ def test_the_torque_blend_after_a_release_runs_natively(name):
     states = list(_states(robot, nat.model, 260, seed=16, scale=0.001))
     foot = robot.feet[0]
     contact = next(c.name for c in nat.layout.contacts if c.frame == foot)
-    blend = strict = 0
+    blend = strict = native = 0
     for k, (t, state) in enumerate(states):
         if k == 20:
             for ctrl in (nat, py):
@@ -232,12 +232,20 @@ def test_the_torque_blend_after_a_release_runs_natively(name):
         a, b = nat.step(state, t), py.step(state, t)
         ran_native = nat.native.steps == before + 1
         assert a.report.strictness_suspended == b.report.strictness_suspended, t
-        if a.report.strictness_suspended and ran_native:
+        if not ran_native:
+            # the unloading's Python steps: Python against Python, their solvers' warm starts
+            # from different histories (nat's solved nothing while its steps ran natively); not
+            # this test's subject (at g1 t=0.071 the two land 1.09e-6 apart on the lowest level,
+            # below a rank-deficient one, where cold solves by three solvers spread 1.5e-6)
+            continue
+        native += 1
+        if a.report.strictness_suspended:
             blend += 1
             _same_levels(nat, py, f"{name} t={t}")
         strict += _same_optimum(nat, py, a, b, f"{name} t={t}", tol=1e-6, sigma_tol=1e-6,
                                 conflict_sigma=False)
-    assert strict >= 0.8 * len(states)
+    # every step natively but the unloading's 60 and the release's event
+    assert native >= len(states) - 62 and strict >= 0.8 * native
     # the blend's steps but its first (the release's event: the Python step)
     assert blend >= round(nat.stack.blend_time / 0.001) - 2 > 0
 
