@@ -331,20 +331,31 @@ def _pushed(force, angle_deg):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("force,angle", [(325.0, 0.0), (362.5, 90.0)],
-                         ids=["forward-325N", "lateral-362.5N"])
-def test_standing_survives_the_largest_pushes_measured(force, angle):
-    # The largest pushes survived in session 19 (`scripts/push_recovery.py --directions 0 90`,
-    # 5 s runs; 4 s and 6 s give the same brackets, 331.25 N and 368.75 N fall): issue 17's
-    # 331 N forward and 400 N lateral are NOT met once a run is long enough to see a slow
-    # fall (below). This holds the figures where they are.
+@pytest.mark.parametrize("force,angle", [(275.0, 0.0), (325.0, 90.0)],
+                         ids=["forward-275N", "lateral-325N"])
+def test_standing_survives_pushes_below_the_band_where_survival_is_chaotic(force, angle):
+    # Between about 287 N and 375 N forward (350 N and 375 N lateral) survival is not a
+    # function of the force: it flips with rounding (session 21, 5 s runs, 0.1 s pushes at
+    # 0.3 s; the same code and packages on another CPU, or an extra module imported before the
+    # run, turn a survival into a slow fall and back; forward 312.5 N falls at 3.65 s where
+    # 325 N and 337.5 N survive; 1e-4 rad of initial joint noise, seeds 0-3, makes 287.5 N,
+    # 325 N forward and 350 N, 362.5 N lateral fall in one or two runs of four). Session 19's
+    # "largest survived" 325 N and 362.5 N were one sample each of that band. Below it every
+    # run survived: 275 N forward and 325 N lateral, unperturbed and in 4 seeds each.
     m = _pushed(force, angle)
     assert not m["fell"] and m["clip_count"] == 0 and m["safe_mode_steps"] == 0, m
 
 
 @pytest.mark.slow
 def test_a_two_second_window_misses_a_slow_fall():
-    # Why the push-recovery study's runs last 5 s: 337.5 N forward was the "largest survived"
-    # push of 2 s runs, yet the robot falls at 2.17 s.
-    m = _pushed(337.5, 0.0)
-    assert m["fell"] and 2.0 < m["fell_at_s"] < 5.0, m
+    # Why the push-recovery study's runs last 5 s: inside the chaotic band (above) a pushed
+    # robot can stand for seconds and then fall (session 21: 312.5 N forward falls at 3.65 s;
+    # session 19's machine: 337.5 N at 2.17 s). Which force of the band does so depends on
+    # rounding, so this looks for one among four and stops at the first.
+    falls = []
+    for force in (312.5, 325.0, 337.5, 350.0):
+        m = _pushed(force, 0.0)
+        falls.append((force, m["fell_at_s"]))
+        if m["fell"] and 2.0 < m["fell_at_s"] < 5.0:
+            return
+    pytest.fail(f"no push of the band fell after 2 s: {falls}")
