@@ -49,6 +49,13 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--internal-forces", default="min-norm",
                    choices=("none", "min-norm", "balanced"),
                    help="null-space law only: choice of the internal contact forces")
+    p.add_argument("--repeats", type=int, default=1,
+                   help="simulations per probed force (seeds 0..K-1 of --init-q-std): a force "
+                        "is survived when all K survived; survival near the threshold flips "
+                        "with rounding, so one run per force samples it (docs/study.md)")
+    p.add_argument("--init-q-std", type=float, default=None,
+                   help="initial joint-angle perturbation [rad] of each repeat (default with "
+                        "--repeats > 1: 1e-4)")
     p.add_argument("--timeout", type=float, default=0.0,
                    help="wall-clock limit of one simulation [s] (0: none)")
     p.add_argument("--workers", type=int, default=None, help="CPUs of the local Ray instance")
@@ -62,12 +69,16 @@ def main(argv: list[str] | None = None) -> int:
         fixed["internal_forces"] = args.internal_forces
         if args.law_zones:
             fixed.update(support_zone=args.law_zones[0], torque_zone=args.law_zones[1])
+    init_q_std = args.init_q_std if args.init_q_std is not None else (
+        1e-4 if args.repeats > 1 else None)
+    if init_q_std is not None:
+        fixed["init_q_std"] = init_q_std
     study = study_from_dict({
         "study": "push-map", "name": "push_recovery", "controllers": [args.controller],
         "robot": args.robot, "duration": args.duration, "timeout": args.timeout,
         "fixed": fixed, "push": {"directions": args.directions, "max_force": args.max_force,
                                  "tolerance": args.tolerance, "at": args.push_at,
-                                 "duration": args.push_duration}})
+                                 "duration": args.push_duration, "repeats": args.repeats}})
     make_plan(study)
     records = RecordFile(args.out, resume=args.resume, overwrite=not args.resume)
     ray = connect(args.address, args.workers)

@@ -48,11 +48,13 @@ def test_bisection_ends_of_the_range() -> None:
     assert failed.failed and failed.done and failed.next_force() is None
 
 
-def fake_record(params: dict, fell: bool | None, group: str, probe: int) -> dict:
+def fake_record(params: dict, fell: bool | None, group: str, probe: int,
+                repeat: int = 0) -> dict:
     status = "ok" if fell is not None else "crashed"
     return {"id": simulation_id(params), "params": params, "status": status,
             "metrics": {} if fell is None else {"fell": fell}, "error": None if fell is not None
-            else "WorkerCrashedError: the worker died", "group": group, "probe": probe}
+            else "WorkerCrashedError: the worker died", "group": group, "probe": probe,
+            "repeat": repeat}
 
 
 def test_push_map_plan_runs_every_direction_in_parallel() -> None:
@@ -80,6 +82,52 @@ def test_push_map_plan_runs_every_direction_in_parallel() -> None:
     assert rows["nullspace", 90.0]["status"] == "failed"
     assert rows["nullspace", 90.0]["errors"] == ["crashed: WorkerCrashedError: the worker died"]
     assert all(r["status"] == "done" for k, r in rows.items() if k != ("nullspace", 90.0))
+
+
+def test_push_map_repeats_count_a_force_survived_only_when_every_repeat_survived() -> None:
+    # a robot whose survival is chaotic between 250 N and 350 N: seed 2 falls from 250 N,
+    # the other seeds from 350 N; the bracket is that of the seed that falls first
+    study = study_from_dict({"study": "push-map", "fixed": {"init_q_std": 1e-4},
+                             "push": {"directions": [0.0, 90.0], "max_force": 800,
+                                      "tolerance": 25, "repeats": 3}})
+    plan = PushMapPlan(study)
+    first = plan.ready()
+    assert len(first) == 6 and plan.ready() == []  # the repeats of a probe run in parallel
+    assert sorted(p["seed"] for p, _ in first) == [0, 0, 1, 1, 2, 2]
+    assert len({simulation_id(p) for p, _ in first}) == 6
+    assert plan.expected() == 3 * 2 * Bisection(800, 25).expected_probes()
+    batch, ran = first, 0
+    while batch:
+        # fed in reverse order: a probe advances only once all its repeats are in
+        for params, notes in reversed(batch):
+            threshold = 250.0 if params["seed"] == 2 else 350.0
+            plan.feed(fake_record(params, params["push_force"] >= threshold, **notes))
+            ran += 1
+        batch = plan.ready()
+    rows = plan.summary()["directions"]
+    for row in rows:
+        assert row["largest_survived_n"] < 250.0 <= row["smallest_fallen_n"]
+        assert row["smallest_fallen_n"] - row["largest_survived_n"] <= 25.0
+        assert row["repeats"] == 3 and row["status"] == "done"
+        fallen = next(r for r in plan.records[f"hqp/{row['angle_deg']:g}"]
+                      if r["id"] == row["fallen_id"])
+        assert fallen["metrics"]["fell"]  # the record named is one that fell
+    assert ran == 3 * sum(r["probes"] for r in rows)
+
+
+def test_push_map_repeats_need_a_perturbation_and_set_the_seed() -> None:
+    with pytest.raises(InvalidInput, match="init_q_std"):
+        study_from_dict({"study": "push-map", "push": {"repeats": 4}})
+    with pytest.raises(InvalidInput, match="seed"):
+        study_from_dict({"study": "push-map", "fixed": {"init_q_std": 1e-4, "seed": 3},
+                         "push": {"repeats": 4}})
+    for bad in (0, 2.5, True, "3"):
+        with pytest.raises(InvalidInput, match="repeats"):
+            study_from_dict({"study": "push-map", "fixed": {"noise_q_std": 1e-4},
+                             "push": {"repeats": bad}})
+    # one repeat: the params (and so the records' ids) of a study without repeats
+    single = PushMapPlan(study_from_dict({"study": "push-map", "push": {"repeats": 1}}))
+    assert all("seed" not in p for p, _ in single.ready())
 
 
 def test_grid_plan_is_the_cartesian_product() -> None:

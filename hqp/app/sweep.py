@@ -76,6 +76,10 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     push.add_argument("--push-at", type=float, metavar="S", help="start of the push [s] (0.3)")
     push.add_argument("--push-duration", type=float, metavar="S",
                       help="length of the push [s] (0.1)")
+    push.add_argument("--repeats", type=int, metavar="K",
+                      help="simulations per probed force, seeds 0..K-1 of a perturbation set "
+                           "with --set (e.g. init_q_std=1e-4); a force is survived when all "
+                           "K survived (1)")
     run = p.add_argument_group("execution")
     run.add_argument("--address", help="a running Ray cluster (default: a new local instance)")
     run.add_argument("--workers", type=int, metavar="N",
@@ -145,7 +149,8 @@ def study_from_args(args: argparse.Namespace) -> Study:
         data["grid"] = {**data.get("grid", {}), **grid}
     push = {key: getattr(args, flag) for key, flag in (
         ("max_force", "max_force"), ("tolerance", "tolerance"), ("min_force", "min_force"),
-        ("at", "push_at"), ("duration", "push_duration")) if getattr(args, flag) is not None}
+        ("at", "push_at"), ("duration", "push_duration"), ("repeats", "repeats"))
+        if getattr(args, flag) is not None}
     if args.directions is not None:
         push["directions"] = args.directions
     if args.angles is not None:

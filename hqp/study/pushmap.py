@@ -7,6 +7,14 @@ itself, so that the reported largest survived force is always one that a run sur
 the smallest fallen force one under which a run fell. Each direction is a chain of
 simulations that depend on each other; the directions (and controllers) are independent and
 run in parallel (:class:`PushMapPlan`).
+
+Near a direction's threshold, whether a push is survived is not a function of the force: it
+flips with rounding (another CPU, another import order) and with initial perturbations far
+below any sensor's resolution (docs/study.md). ``repeats`` (``[push]``) makes each probe
+``repeats`` simulations, seeds ``0 .. repeats-1`` of a perturbation the study sets
+(``init_q_std``, ``init_v_std`` or measurement noise): a force counts as survived only when
+every repeat survived, as fallen when any repeat fell, so the bracket is that of a
+conservative threshold, and the repeats of a probe run in parallel.
 """
 
 from __future__ import annotations
@@ -79,29 +87,48 @@ def group_name(controller: str, angle: float) -> str:
     return f"{controller}/{angle:g}"
 
 
+@dataclass
+class _Probe:
+    """The outcome so far of one probe's repeats."""
+
+    force: float
+    left: int
+    fell: bool = False
+    failed: bool = False
+
+
 class PushMapPlan:
     """The simulations of a ``push-map`` study, handed out as the bisections advance."""
 
     def __init__(self, study: Study) -> None:
         self.study = study
+        self.repeats = study.push.repeats
         self.chains: dict[str, tuple[str, float, Bisection]] = {}
         for controller in study.controllers:
             for angle in study.push.directions:
                 search = Bisection(study.push.max_force, study.push.tolerance,
                                    study.push.min_force)
                 self.chains[group_name(controller, angle)] = (controller, angle, search)
-        self.pending: set[str] = set()
+        self.pending: dict[str, _Probe] = {}
         self.records: dict[str, list[dict[str, Any]]] = {g: [] for g in self.chains}
 
-    def params(self, group: str, force: float) -> Params:
-        """Return the params of one probe of a chain."""
+    def params(self, group: str, force: float, repeat: int = 0) -> Params:
+        """Return the params of one repeat of one probe of a chain.
+
+        With ``repeats > 1`` each repeat sets its own ``seed`` (``repeat``); with one repeat
+        the params are those of a study without repeats (their records are reused).
+        """
         controller, angle, _ = self.chains[group]
-        return {**self.study.base_params(controller), "push_force": force,
-                "push_angle_deg": angle}
+        params = {**self.study.base_params(controller), "push_force": force,
+                  "push_angle_deg": angle}
+        if self.repeats > 1:
+            params["seed"] = repeat
+        return params
 
     def first_params(self) -> list[Params]:
         """Return the first probe of every chain (checked before anything runs)."""
-        return [self.params(g, c[2].max_force) for g, c in self.chains.items()]
+        return [self.params(g, c[2].max_force, k) for g, c in self.chains.items()
+                for k in range(self.repeats)]
 
     def ready(self) -> list[tuple[Params, dict[str, Any]]]:
         """Return the simulations that can start now, each with its record's annotations."""
@@ -110,23 +137,31 @@ class PushMapPlan:
             force = search.next_force()
             if force is None or group in self.pending:
                 continue
-            self.pending.add(group)
-            out.append((self.params(group, force),
-                        {"group": group, "probe": len(search.probes)}))
+            self.pending[group] = _Probe(force, self.repeats)
+            for k in range(self.repeats):
+                out.append((self.params(group, force, k),
+                            {"group": group, "probe": len(search.probes), "repeat": k}))
         return out
 
     def feed(self, record: dict[str, Any]) -> None:
-        """Advance a chain with the record of its pending simulation."""
+        """Record one repeat of a chain's pending probe; the last one advances the chain."""
         group = record["group"]
         search = self.chains[group][2]
-        self.pending.discard(group)
-        fell = record["metrics"].get("fell") if record["status"] == "ok" else None
-        search.feed(record["params"]["push_force"], fell)
+        probe = self.pending[group]
+        if record["status"] != "ok":
+            probe.failed = True
+        elif record["metrics"].get("fell"):
+            probe.fell = True
+        probe.left -= 1
         self.records[group].append(record)
+        if probe.left == 0:
+            del self.pending[group]
+            search.feed(probe.force, None if probe.failed else probe.fell)
 
     def expected(self) -> int:
         """Upper bound of the number of simulations (progress bar)."""
-        return sum(search.expected_probes() for _, _, search in self.chains.values())
+        return self.repeats * sum(search.expected_probes()
+                                  for _, _, search in self.chains.values())
 
     def summary(self) -> dict[str, Any]:
         """Return the push map: one row per controller and direction."""
@@ -134,7 +169,11 @@ class PushMapPlan:
         rows = []
         for group, (controller, angle, search) in self.chains.items():
             failures = [r for r in self.records[group] if r["status"] != "ok"]
-            by_force = {r["params"]["push_force"]: r["id"] for r in self.records[group]}
+            by_force: dict[float, str] = {}  # a record at each force, one that fell if any
+            for r in self.records[group]:
+                force = r["params"]["push_force"]
+                if force not in by_force or r["metrics"].get("fell"):
+                    by_force[force] = r["id"]
             rows.append({
                 "controller": controller, "angle_deg": angle,
                 "largest_survived_n": search.survived,
@@ -144,6 +183,7 @@ class PushMapPlan:
                 "survived_id": by_force.get(search.survived),
                 "fallen_id": by_force.get(search.fell),
                 "probes": len(search.probes),
+                "repeats": self.repeats,
                 "status": "failed" if search.failed else "done" if search.done else "open",
                 "errors": [f"{r['status']}: {r['error']}" for r in failures],
             })

@@ -35,6 +35,10 @@ from hqp.errors import InvalidInput, UnknownName
 KINDS = ("push-map", "grid")
 """The built-in studies."""
 
+PERTURBATIONS = ("init_q_std", "init_v_std", "noise_q_std", "noise_v_std")
+"""The seeded perturbations of a standing simulation (:mod:`hqp.study.simulation`): what
+makes the repeats of a push map's probe differ."""
+
 Params = dict[str, Any]
 """The parameters of one simulation (JSON scalars)."""
 
@@ -48,6 +52,9 @@ class PushSearch:
         max_force: Upper end of the search [N] (tried first).
         tolerance: The search stops when the bracket is this narrow [N].
         min_force: Lower end [N] (tried last when nothing above it survived).
+        repeats: Simulations per probed force, seeds ``0 .. repeats-1`` of the study's
+            perturbation; a force is survived when every repeat survived
+            (:mod:`hqp.study.pushmap`).
 
     """
 
@@ -55,6 +62,7 @@ class PushSearch:
     max_force: float = 800.0
     tolerance: float = 10.0
     min_force: float = 0.0
+    repeats: int = 1
 
 
 @dataclass(frozen=True)
@@ -132,16 +140,22 @@ def _positive(data: Mapping[str, Any], key: str, default: float, *, zero: bool =
 
 def _push_search(data: Mapping[str, Any]) -> PushSearch:
     unknown = set(data) - {"directions", "max_force", "tolerance", "min_force", "at",
-                           "duration"}
+                           "duration", "repeats"}
     if unknown:
         raise InvalidInput(f"study: unknown keys in [push]: {sorted(unknown)} (known: "
-                           "directions, max_force, tolerance, min_force, at, duration)")
+                           "directions, max_force, tolerance, min_force, at, duration, "
+                           "repeats)")
     default = PushSearch()
+    repeats = data.get("repeats", default.repeats)
+    if isinstance(repeats, bool) or not isinstance(repeats, int) or not 1 <= repeats <= 1000:
+        raise InvalidInput(f"study: [push] repeats must be an integer from 1 to 1000, got "
+                           f"{repeats!r}")
     search = PushSearch(
         directions=directions(data.get("directions", default.directions)),
         max_force=_positive(data, "max_force", default.max_force),
         tolerance=_positive(data, "tolerance", default.tolerance),
         min_force=_positive(data, "min_force", default.min_force, zero=True),
+        repeats=repeats,
     )
     if search.min_force >= search.max_force:
         raise InvalidInput(f"study: min_force ({search.min_force} N) must be below max_force "
@@ -208,11 +222,21 @@ def study_from_dict(data: Mapping[str, Any], *, kind: str | None = None) -> Stud
         raise InvalidInput("study: a grid study needs at least one parameter in [grid]")
     if kind == "push-map" and grid:
         raise InvalidInput("study: a push-map study sweeps pushes itself; [grid] is for grids")
+    search = _push_search(push)
+    if kind == "push-map" and search.repeats > 1:
+        if "seed" in fixed:
+            raise InvalidInput("study: [push] repeats set the seed of each repeat; remove "
+                               "`seed` from the fixed parameters")
+        if not any(isinstance(fixed.get(k), (int, float)) and fixed[k] > 0
+                   for k in PERTURBATIONS):
+            raise InvalidInput(f"study: [push] repeats = {search.repeats} would run the same "
+                               f"simulation {search.repeats} times: set a perturbation, one "
+                               f"of {', '.join(PERTURBATIONS)} (e.g. init_q_std = 1e-4)")
     metrics = data.get("metrics", ())
     metrics = (metrics,) if isinstance(metrics, str) else tuple(metrics)
     study = Study(
         kind=kind, name=str(data.get("name", kind)), controllers=controllers, fixed=fixed,
-        grid=grid, push=_push_search(push), metrics=metrics,
+        grid=grid, push=search, metrics=metrics,
         timeout=_positive(data, "timeout", 0.0, zero=True))
     return study
 
