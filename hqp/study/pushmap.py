@@ -102,7 +102,6 @@ class PushMapPlan:
 
     def __init__(self, study: Study) -> None:
         self.study = study
-        self.repeats = study.push.repeats
         self.chains: dict[str, tuple[str, float, Bisection]] = {}
         for controller in study.controllers:
             for angle in study.push.directions:
@@ -111,6 +110,11 @@ class PushMapPlan:
                 self.chains[group_name(controller, angle)] = (controller, angle, search)
         self.pending: dict[str, _Probe] = {}
         self.records: dict[str, list[dict[str, Any]]] = {g: [] for g in self.chains}
+
+    @property
+    def repeats(self) -> int:
+        """Simulations per probed force (the study's ``[push] repeats``)."""
+        return self.study.push.repeats
 
     def params(self, group: str, force: float, repeat: int = 0) -> Params:
         """Return the params of one repeat of one probe of a chain.
