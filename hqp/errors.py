@@ -98,9 +98,10 @@ def check_array(
     ):
         want = "(" + ", ".join("*" if s is None else str(s) for s in shape) + ")"
         raise InvalidInput(f"{where}: expected shape {want}, got {arr.shape}")
-    if np.isnan(arr).any():
-        raise InvalidInput(f"{where}: contains NaN")
-    if not allow_inf and np.isinf(arr).any():
-        raise InvalidInput(f"{where}: contains inf")
+    if not np.isfinite(arr).all():  # one pass on the common, finite case
+        if np.isnan(arr).any():
+            raise InvalidInput(f"{where}: contains NaN")
+        if not allow_inf:
+            raise InvalidInput(f"{where}: contains inf")
     return arr
 

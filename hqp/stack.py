@@ -582,6 +582,53 @@ class Stack:
                 return False
         return not any(e.goal_ramp_pending or self._ramping(e, t) for e in self._tasks)
 
+    def native_ready(self, t: float) -> bool:
+        """Whether the native step can run the step at ``t`` when :meth:`steady` does not hold.
+
+        Contacts whose unloading is over at ``t`` are released first (as :meth:`advance`
+        does). Then true when no blend event waits and every unloading or released contact
+        has an owner (a ``Contact`` task whose kernel takes its normal-force bound and holds
+        its slot): tasks ramping in, goal ramps and unloading are advanced by
+        :meth:`advance_native` and the ramps applied in the native rows
+        (``NativeStep.set_ramp``, the same offsets as :meth:`build`).
+        """
+        self._update_contacts(t)
+        if self._events:
+            return False
+        for c in self._contacts.values():
+            if c.mode is not ContactMode.ACTIVE and not self._self_managed(c.name):
+                return False
+        return True
+
+    def advance_native(self, model: RobotModel, layout: Layout, t: float,
+                       x_prev: np.ndarray | None) -> list[_TaskEntry]:
+        """:meth:`advance` for a step whose rows the native core builds (:meth:`native_ready`).
+
+        The same changes but the recording of ramp offsets from Python rows: unloading
+        bounds, active contacts, goal ramps started. Returns the tasks ramping in at ``t``,
+        whose offsets (``offsets``, ``None`` until recorded) the native step records from
+        its own rows at ``x_prev`` and gives back.
+        """
+        for slot in layout.contacts:
+            c = self._contacts[slot.name]
+            if c.mode is ContactMode.UNLOADING:
+                self._unload_bound(c, model, t, x_prev, slot.start, layout.n)
+        self._set_active_frames(self._active_frames())
+        ramping = []
+        for entry in self._tasks:
+            if self._dropped(entry):
+                continue
+            if entry.goal_ramp_pending:
+                entry.goal_ramp_pending = False
+                _ramp_goal(entry.task, model, entry.ramp_time, t)
+            if self._ramping(entry, t):
+                ramping.append(entry)
+        return ramping
+
+    def ramp_keep(self, entry: _TaskEntry, t: float) -> float:
+        """``1 - s`` of a task ramping in at ``t`` (the share of its offsets its rows keep)."""
+        return 1.0 - min_jerk((t - entry.added_at) / entry.ramp_time)
+
     def pop_events(self) -> list[BlendEvent]:
         """Return and forget the blend events recorded since the last call."""
         events, self._events = self._events, []
@@ -663,22 +710,8 @@ class Stack:
         n = layout.n
         for slot in layout.contacts:
             c = self._contacts[slot.name]
-            if c.mode is not ContactMode.UNLOADING:
-                continue
-            if c.f_start is None:
-                C = np.zeros((1, n))
-                C[0, slot.start:slot.start + 3] = model.frame_placement(slot.frame).rotation[:, 2]
-                fz = float(C[0] @ x_prev) if x_prev is not None else 0.0
-                c.f_start = max(fz, 0.0)
-            owner = self._owner(c)
-            if owner is not None:
-                fmax = (1.0 - self._unload_fraction(c, t)) * c.f_start
-                if c.f_max_nominal is None:
-                    c.f_max_nominal = float(owner.max_normal_force)  # type: ignore[attr-defined]
-                f_min = float(getattr(owner, "f_min", 0.0))
-                owner.max_normal_force = max(  # type: ignore[attr-defined]
-                    min(fmax, c.f_max_nominal), f_min
-                )
+            if c.mode is ContactMode.UNLOADING:
+                self._unload_bound(c, model, t, x_prev, slot.start, n)
         self._set_active_frames(self._active_frames())
         for entry in self._tasks:
             if self._dropped(entry):
@@ -692,6 +725,26 @@ class Stack:
             _check_columns(rows, n, entry.task.where())
             if entry.offsets is None or not _offsets_fit(entry.offsets, rows):
                 entry.offsets = _ramp_offsets(rows, x_prev)
+
+    def _unload_bound(self, c: _ContactEntry, model: RobotModel, t: float,
+                      x_prev: np.ndarray | None, start: int, n: int) -> None:
+        """An unloading contact (slot at ``start`` of ``n`` variables): its normal force at
+        the start (from ``x_prev``, world normal), then its owner's ``max_normal_force``
+        along the unloading profile."""
+        if c.f_start is None:
+            C = np.zeros((1, n))
+            C[0, start:start + 3] = model.frame_placement(c.frame).rotation[:, 2]
+            fz = float(C[0] @ x_prev) if x_prev is not None else 0.0
+            c.f_start = max(fz, 0.0)
+        owner = self._owner(c)
+        if owner is not None:
+            fmax = (1.0 - self._unload_fraction(c, t)) * c.f_start
+            if c.f_max_nominal is None:
+                c.f_max_nominal = float(owner.max_normal_force)  # type: ignore[attr-defined]
+            f_min = float(getattr(owner, "f_min", 0.0))
+            owner.max_normal_force = max(  # type: ignore[attr-defined]
+                min(fmax, c.f_max_nominal), f_min
+            )
 
     def advance_steady(self) -> None:
         """:meth:`advance` for a steady stack (:meth:`steady` true at this step's time).
@@ -887,13 +940,13 @@ def _ramp_offsets(rows: Rows, x_prev: np.ndarray | None) -> Offsets:
 
 
 def _offsets_fit(offsets: Offsets, rows: Rows) -> bool:
-    """Whether recorded offsets still match the task's row counts (tasks may change them)."""
-    d_eq, d_lo, d_up = offsets
-    return ((d_eq is None) == (rows.b is None) and (d_eq is None or d_eq.shape == rows.b.shape)
-            and (d_lo is None) == (rows.lower is None)
-            and (d_lo is None or d_lo.shape == rows.lower.shape)  # type: ignore[union-attr]
-            and (d_up is None) == (rows.upper is None)
-            and (d_up is None or d_up.shape == rows.upper.shape))  # type: ignore[union-attr]
+    """Whether recorded offsets still match the task's row counts (tasks may change them).
+
+    An offset for a part the rows lack (e.g. a lower-bound offset the native step recorded
+    for a one-sided Python row) is not used and does not matter.
+    """
+    return all(part is None or (d is not None and d.shape == part.shape)
+               for d, part in zip(offsets, (rows.b, rows.lower, rows.upper)))
 
 
 def _ramp(rows: Rows, s: float, offsets: Offsets) -> Rows:

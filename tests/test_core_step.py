@@ -340,3 +340,92 @@ def test_a_native_step_in_a_second_thread_leaves_the_first_to_python():
     core = mirror.step_core
     core.step(q, v, ctrl.dt)
     assert_runs_beside_python(lambda: core.step(q, v, ctrl.dt))
+
+
+@pytest.mark.parametrize("name", robots.NAMES)
+def test_ramp_offsets_and_ramped_rows_equal_the_stacks(name):
+    """A task ramping in, in the native rows: the offsets recorded from the kernel's rows at
+    ``x_prev`` equal ``hqp.stack._ramp_offsets`` of the Python rows, and the rows with
+    ``keep = 1 - s`` of them equal ``hqp.stack._ramp`` (to 1e-10), for an equality task (a
+    position) and an inequality one (the joint limits); keep 0 gives the rows back."""
+    from hqp.stack import _ramp, _ramp_offsets
+
+    robot, ctrl = _standing(name)
+    mirror = NativeStepMirror(robot, ctrl)
+    core, model, layout = mirror.step_core, ctrl.model, ctrl.layout
+    rng = np.random.default_rng(21)
+    names = ["com", "joint_limits"]
+    for i, (q, v, t) in enumerate(_agitated(robot, model, 22, 0.01, 0.1, steps=4)):
+        x_prev = rng.normal(scale=5.0, size=core.n)
+        keep = [0.75, 0.3, 0.0, 1.0][i]
+        for task_name in names:
+            h = mirror._handles[task_name]
+            core.record_ramp(h, x_prev)
+            core.set_ramp(h, keep)
+        mirror.push_goals(t)
+        core.step(q, v, ctrl.dt)
+        built = ctrl.stack.build(model, layout, ctrl.dt, t)
+        for task_name in names:
+            h = mirror._handles[task_name]
+            rows = built.rows[task_name]
+            expected = _ramp_offsets(rows, x_prev)
+            for got, want, part in zip(core.ramp_offsets(h), expected, ("eq", "lo", "up")):
+                if want is None:
+                    assert got.size == 0, (task_name, part)
+                else:
+                    _close(got, want, f"{name} {task_name} offsets {part}")
+            ramped = _ramp(rows, 1.0 - keep, expected)
+            _kind, level, b_level, eq0, neq, in0, nin, sqrt_w = core.entry(h)
+            _lv, _A, b, _C, lo, up = core.levels()[b_level]
+            if neq:
+                _close(b[eq0:eq0 + neq] / sqrt_w, ramped.b, f"{name} {task_name} b")
+            if nin:
+                _close(lo[in0:in0 + nin] / sqrt_w, ramped.lower, f"{name} {task_name} lower")
+                _close(up[in0:in0 + nin] / sqrt_w, ramped.upper, f"{name} {task_name} upper")
+
+
+def test_ramp_setters_refuse_bad_values():
+    robot, ctrl = _standing("g1")
+    mirror = NativeStepMirror(robot, ctrl)
+    core = mirror.step_core
+    h = mirror._handles["com"]
+    for keep in (-0.1, 1.5, float("nan")):
+        with pytest.raises(ValueError, match="keep"):
+            core.set_ramp(h, keep)
+    with pytest.raises(ValueError, match="x_prev"):
+        core.record_ramp(h, np.zeros(core.n + 1))
+    with pytest.raises(ValueError, match="NaN"):
+        core.record_ramp(h, np.full(core.n, np.nan))
+    with pytest.raises(ValueError, match="one per equality row"):
+        core.set_ramp_offsets(h, np.zeros(2), np.zeros(0), np.zeros(0))
+    with pytest.raises(ValueError, match="handle"):
+        core.set_ramp(10_000, 0.5)
+    kernel = core.contact(mirror._contacts["left_foot"])
+    with pytest.raises(ValueError, match="f_min"):
+        kernel.set_max_normal_force(-1.0)
+
+
+def test_a_ramping_and_unloading_step_allocates_nothing():
+    """Eigen's run-time check over steps with a task ramping in (its offsets recorded at the
+    first, keep falling after) and a contact's normal-force bound lowered step by step."""
+    robot, ctrl, mirror = _checked_mirror("g1")
+    core, model = mirror.step_core, ctrl.model
+    rng = np.random.default_rng(13)
+    q = robot.q_standing.copy()
+    q[7:] += rng.normal(scale=0.003, size=model.na)
+    v = rng.normal(scale=0.01, size=model.nv)
+    for i in range(3):  # sizes everything (allowed to allocate)
+        mirror.push_goals(0.001 * i)
+        core.step(q, v, ctrl.dt)
+    h = mirror._handles["com"]
+    contact = core.contact(mirror._contacts["left_foot"])
+    x_prev = np.array(core.x)
+    for i in range(3, 20):
+        if i == 3:
+            core.record_ramp(h, x_prev)
+        core.set_ramp(h, 1.0 - (i - 3) / 16)
+        contact.set_max_normal_force(max(0.0, 300.0 * (1.0 - (i - 3) / 16)))
+        mirror.push_goals(0.001 * i)
+        core.step(q, v, ctrl.dt, forbid_malloc=True)  # raises on an allocation
+        assert np.isfinite(core.tau).all()
+    assert np.abs(core.ramp_offsets(h)[0]).max() > 0.0

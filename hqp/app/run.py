@@ -161,9 +161,9 @@ class _Meter:
                 self.trace[key].append(value)
         planner = self.behavior.planner
         if planner is not None and planner.trajectory is not None:
-            plan = planner.outputs(step.t)
-            if plan["started"] and not plan["done"]:
-                err = float(np.linalg.norm(self.model.com[:2] - plan["com"][:2]))
+            if planner.output("started", step.t) and not planner.output("done", step.t):
+                com = planner.output("com", step.t)
+                err = float(np.linalg.norm(self.model.com[:2] - com[:2]))
                 if err > self.com_err_max:
                     self.com_err_max, self.com_err_t = err, step.t
         self.pelvis_min = min(self.pelvis_min, self.sim.base_height())

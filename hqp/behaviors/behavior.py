@@ -25,6 +25,9 @@ from __future__ import annotations
 
 import enum
 import logging
+import math
+from collections import ChainMap
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -141,9 +144,17 @@ class Behavior:
         self.feet_center = np.zeros(3)
         self._initial: dict[str, Any] = {}
         self._goals_set: dict[str, dict[str, Any]] = {}
+        # a pose reads the standing configuration, or the current one without it
+        self._fixed_names = _FIXED_IN_PHASE if standing is not None else (
+            _FIXED_IN_PHASE - {"pose"})
+        self._goals_fixed: set[str] = set()
+        """Tasks of this phase whose goals read only what a phase holds fixed, already set."""
         self._levels: dict[str, int] = {}
         self._flags: dict[str, bool] = {}
         self._bad_steps: dict[str, int] = {}
+        self._flagging = False
+        """A flag is set or counting towards a change (else a report without conflict
+        changes nothing)."""
         self._started = False
         self._errors: dict[str, dict[str, dict[str, float]]] = {}
         self._entered: list[tuple[str, float]] = []
@@ -210,7 +221,7 @@ class Behavior:
         safety_task = self._feasibility(report, t)
         phase = self.phase_spec
         target = None
-        env: dict[str, Any] | None = None
+        env: _LazyEnv | None = None
         if safety_task is not None and phase.safety is not None:
             status = report[safety_task] if report is not None else None
             self.events.append(FeasibilityEvent(
@@ -249,30 +260,36 @@ class Behavior:
         """Update the infeasibility flags; return a watched task that calls for safety."""
         if report is None:
             return None
+        if not self._flagging and not report.any_conflict:
+            return None  # no flag set or changing, and none starts to: nothing to update
         phase = self.phase_spec
         trigger = None
-        for status in report.tasks:
-            if status.name not in self.tasks:
+        conflicts = {s.name: s for s in report.conflicts()}  # (only these statuses made)
+        for name in report.names:
+            if name not in self.tasks:
                 continue
+            status = conflicts.get(name)
             raw = (
-                status.status is Feasibility.CONFLICT
+                status is not None
                 and (status.yields_to is None or status.yields_to < status.level)
                 and status.residual > self.infeasible_residual
             )
             # debounce: a flag changes after ``safety_steps`` consecutive steps
-            count = self._bad_steps.get(status.name, 0)
-            count = count + 1 if raw != self._flags.get(status.name, False) else 0
-            self._bad_steps[status.name] = count
+            count = self._bad_steps.get(name, 0)
+            count = count + 1 if raw != self._flags.get(name, False) else 0
+            self._bad_steps[name] = count
             if count >= self.safety_steps:
                 bad = raw
-                self._flags[status.name] = bad
-                self._bad_steps[status.name] = 0
+                self._flags[name] = bad
+                self._bad_steps[name] = 0
+                if status is None:
+                    status = report[name]
                 self.events.append(FeasibilityEvent(
-                    t, phase.name, status.name, self._word(status) if bad else "satisfied",
+                    t, phase.name, name, self._word(status) if bad else "satisfied",
                     status.level, status.yields_to, status.residual))
-            if (status.name in phase.watch and trigger is None
-                    and self._flags.get(status.name, False)):
-                trigger = status.name
+            if name in phase.watch and trigger is None and self._flags.get(name, False):
+                trigger = name
+        self._flagging = any(self._flags.values()) or any(self._bad_steps.values())
         return trigger
 
     def _word(self, status: TaskStatus) -> str:
@@ -317,48 +334,65 @@ class Behavior:
         model = ctrl.model
         self._initial = {tname: self.factory.current(self.tasks[tname], self.spec.tasks[tname],
                                                       model) for tname in wanted}
+        self._goals_fixed = set()
         self.phase = self.Phase(name)
         self.phase_start = float(t)
         self.visited.append(name)
         self._entered.append((name, float(t) - self.t0))
         logger.info("t=%.3f s: phase %s", t, name)
 
-    def _env(self, state: RobotState, t: float, initial: Any) -> dict[str, Any]:
+    def _env(self, state: RobotState, t: float, initial: Any) -> _LazyEnv:
+        """This step's expression environment; each name is computed when first read."""
         model = self.controller.model
-        sensed = dict(state.contacts or {})
         factory = self.factory
-        env: dict[str, Any] = {
-            "t": float(t) - self.t0,
-            "phase_time": float(t) - self.phase_start,
-            "com": model.com.copy(),
-            "com_velocity": model.com_velocity.copy(),
-            "com0": self.com0,
-            "feet_center": self.feet_center,
-            "contact": Namespace({c: bool(sensed.get(c, False)) for c in factory.contact_names},
-                                 "contact"),
-            "contacts": sum(bool(sensed.get(c, False)) for c in factory.contact_names),
-            "error": _LazyNamespace(lambda n: self._error(n), self.tasks, "error"),
-            "infeasible": Namespace({n: self._flags.get(n, False) for n in self.tasks},
-                                    "infeasible"),
-            "conflict": Namespace({n: self._flags.get(n, False) for n in self.tasks},
-                                  "conflict"),
-            "joint": _LazyNamespace(lambda n: factory.joint(model, n), factory.joint_names,
-                                    "joint"),
-            "joint_margin": _LazyNamespace(lambda n: factory.joint_margin(model, n),
-                                           factory.joint_names, "joint_margin"),
-            "input": _LazyNamespace(lambda n: self.inputs.value(n, float(t) - self.t0),
-                                    self.spec.inputs, "input"),
-            "frame": _LazyNamespace(lambda n: factory.frame_position(model, n),
-                                    model.frame_names, "frame"),
-            "plan": Namespace(self.planner.outputs(t) if self.planner is not None else {},
-                              "plan"),
+
+        def sensed() -> dict[str, Any]:
+            return dict(state.contacts or {})
+
+        makers: dict[str, Callable[[], Any]] = {
+            "t": lambda: float(t) - self.t0,
+            "phase_time": lambda: float(t) - self.phase_start,
+            "com": lambda: model.com.copy(),
+            "com_velocity": lambda: model.com_velocity.copy(),
+            "com0": lambda: self.com0,
+            "feet_center": lambda: self.feet_center,
+            "contact": lambda: Namespace(
+                {c: bool(s.get(c, False)) for s in (sensed(),) for c in factory.contact_names},
+                "contact"),
+            "contacts": lambda: sum(bool(s.get(c, False)) for s in (sensed(),)
+                                    for c in factory.contact_names),
+            "error": lambda: _LazyNamespace(lambda n: self._error(n), self.tasks, "error"),
+            "infeasible": lambda: Namespace({n: self._flags.get(n, False) for n in self.tasks},
+                                            "infeasible"),
+            "conflict": lambda: Namespace({n: self._flags.get(n, False) for n in self.tasks},
+                                          "conflict"),
+            "joint": lambda: _LazyNamespace(lambda n: factory.joint(model, n),
+                                            factory.joint_names, "joint"),
+            "joint_margin": lambda: _LazyNamespace(lambda n: factory.joint_margin(model, n),
+                                                   factory.joint_names, "joint_margin"),
+            "input": lambda: _LazyNamespace(
+                lambda n: self.inputs.value(n, float(t) - self.t0), self.spec.inputs, "input"),
+            "frame": lambda: _LazyNamespace(lambda n: factory.frame_position(model, n),
+                                            model.frame_names, "frame"),
+            "plan": lambda: self._plan(t),
+            "pose": lambda: _LazyNamespace(self.pose, self.spec.poses, "pose"),
         }
         if initial is not None:
-            env["initial"] = initial
+            makers["initial"] = lambda: initial
         if self.standing is not None:
-            env["standing"] = self.standing
-        env["pose"] = _LazyNamespace(self.pose, self.spec.poses, "pose")
-        return env
+            standing = self.standing
+            makers["standing"] = lambda: standing
+        return _LazyEnv(makers)
+
+    def _plan(self, t: float) -> Namespace:
+        """The planner's values at ``t``; each computed when first read if it can."""
+        planner = self.planner
+        if planner is None:
+            return Namespace({}, "plan")
+        output = getattr(planner, "output", None)
+        if output is None:  # a planner with ``outputs(t)`` only
+            return Namespace(planner.outputs(t), "plan")
+        return _LazyNamespace(lambda n: output(n, t), planner.output_names, "plan")
 
     def pose(self, name: str) -> np.ndarray:
         """Return the configuration ``(nq,)``: the standing one with the captured pose's joints."""
@@ -370,26 +404,28 @@ class Behavior:
 
     def _error(self, name: str) -> float:
         """Norm of a task's error at its last rows (``inf`` before its rows were built)."""
-        err = np.asarray(self.tasks[name].error(), dtype=float)
-        return float(np.linalg.norm(err)) if err.size else float("inf")
+        err = np.asarray(self.tasks[name].error(), dtype=float).ravel()
+        return math.sqrt(float(err @ err)) if err.size else math.inf
 
     def _set_goals(self, state: RobotState, t: float,
-                   base_env: dict[str, Any] | None = None) -> None:
+                   base_env: _LazyEnv | None = None) -> None:
         """Evaluate and set the phase's goals.
 
         ``base_env``: this step's expression environment if the caller built it in this
         phase (built here otherwise).
         """
         phase = self.phase_spec
+        fixed = self._goals_fixed
         for ts in phase.action.tasks:
+            if ts.name in fixed:
+                continue  # its goals read nothing that changed since the phase began
             goals = dict(ts.goals)
             goals.update(phase.goals.get(ts.name, {}))
             if not goals:
                 continue
             if base_env is None:
                 base_env = self._env(state, t, None)
-            env = dict(base_env)
-            env["initial"] = self._initial.get(ts.name)
+            env = base_env.with_value("initial", self._initial.get(ts.name))
             values: dict[str, Any] = {}
             for gname, expr in goals.items():
                 try:
@@ -398,6 +434,8 @@ class Behavior:
                     raise BehaviorFileError(
                         f"{self.spec.path}: phase {phase.name!r}, task {ts.name!r}, "
                         f"{gname}: {exc}") from None
+            if all(expr.names <= self._fixed_names for expr in goals.values()):
+                fixed.add(ts.name)
             if _same_values(values, self._goals_set.get(ts.name)):
                 # unchanged: setting it again would replace the trajectory of a task that is
                 # ramping in (its goal starts at its current value, see hqp.stack) by a step
@@ -406,6 +444,10 @@ class Behavior:
             # copies: a value may be an array its producer updates in place
             self._goals_set[ts.name] = {k: np.array(v, copy=True) if isinstance(v, np.ndarray)
                                         else v for k, v in values.items()}
+
+
+_FIXED_IN_PHASE = frozenset({"com0", "feet_center", "standing", "pose", "initial"})
+"""Names of the expression environment whose values do not change within a phase."""
 
 
 def _same_values(values: dict[str, Any], previous: dict[str, Any] | None) -> bool:
@@ -421,6 +463,37 @@ def _same_values(values: dict[str, Any], previous: dict[str, Any] | None) -> boo
             if value != old:
                 return False
     return True
+
+
+class _LazyEnv(Mapping[str, Any]):
+    """An expression environment whose values are computed on first read, then kept.
+
+    Args:
+        makers: Each name and the function that computes its value.
+
+    """
+
+    def __init__(self, makers: dict[str, Callable[[], Any]]) -> None:
+        self._makers = makers
+        self._values: dict[str, Any] = {}
+
+    def __getitem__(self, name: str) -> Any:
+        try:
+            return self._values[name]
+        except KeyError:
+            value = self._makers[name]()  # an unknown name: KeyError, as a dict
+            self._values[name] = value
+            return value
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._makers)
+
+    def __len__(self) -> int:
+        return len(self._makers)
+
+    def with_value(self, name: str, value: Any) -> ChainMap[str, Any]:
+        """This environment (its computed values shared) with ``name`` set to ``value``."""
+        return ChainMap({name: value}, self)
 
 
 class _LazyNamespace(Namespace):

@@ -140,6 +140,14 @@ class Expression:
     names: frozenset[str]
     attributes: frozenset[tuple[str, str]]
 
+    def __post_init__(self) -> None:
+        # ``namespace.name`` alone (most goals: ``plan.com``): read without the tree walk
+        body = self.tree.body
+        path = None
+        if isinstance(body, ast.Attribute) and isinstance(body.value, ast.Name):
+            path = (body.value.id, body.attr)
+        object.__setattr__(self, "_path", path)
+
     def evaluate(self, env: Mapping[str, Any]) -> Any:
         """Value of the expression in ``env`` (names to values or :class:`Namespace`).
 
@@ -147,6 +155,11 @@ class Expression:
             ExpressionError: Unknown name, or an operation that fails on the values.
 
         """
+        path = self._path  # type: ignore[attr-defined]
+        if path is not None and path[0] in env:
+            base = env[path[0]]
+            if isinstance(base, Namespace):
+                return base.get(path[1])
         try:
             return _eval(self.tree.body, env)
         except ExpressionError:

@@ -22,6 +22,7 @@ import numpy as np
 import tomllib
 
 from hqp.behaviors.expressions import Expression, ExpressionError, parse
+from hqp.behaviors.planners import OUTPUT_NAMES as WALK_OUTPUTS
 from hqp.behaviors.schema import SCHEMAS, TaskSchema
 from hqp.behaviors.spec import (
     ActionPrimitive,
@@ -52,18 +53,7 @@ GOAL_NAMES = SENSED_NAMES | {"initial", "standing", "pose"}
 began (``initial``), the robot's standing configuration (``standing``) and the captured
 poses of the file (``pose.<name>``: the standing configuration with the pose's joints)."""
 
-PLANNER_OUTPUTS: dict[str, frozenset[str]] = {
-    "placo_walk": frozenset(
-        {
-            "com", "com_velocity", "com_acceleration", "zmp", "left_foot", "right_foot",
-            "left_foot_velocity", "right_foot_velocity", "left_foot_acceleration",
-            "right_foot_acceleration", "trunk_rotation",
-            "left_swing", "right_swing", "double_support", "started", "done", "steps_planned",
-            "support_center", "left_unload", "right_unload", "left_swing_progress",
-            "right_swing_progress", "swings",
-        }
-    ),
-}
+PLANNER_OUTPUTS: dict[str, frozenset[str]] = {"placo_walk": frozenset(WALK_OUTPUTS)}
 """Planner types and the ``plan.<name>`` values each provides."""
 
 _LEVEL_NAMES = {c.name.lower(): c for c in Category}

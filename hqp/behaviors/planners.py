@@ -158,6 +158,20 @@ class SwingTrajectory:
         return p, v, a
 
 
+_OUTPUT_GROUP: dict[str, str] = {
+    "com": "com", "com_velocity": "com", "com_acceleration": "com", "zmp": "zmp",
+    "trunk_rotation": "trunk", "double_support": "plan", "started": "plan", "done": "plan",
+    "steps_planned": "plan", "swings": "plan", "support_center": "feet",
+    **{f"{side}_{key}": "feet" for side in ("left", "right")
+       for key in ("foot", "foot_velocity", "foot_acceleration", "swing", "swing_progress",
+                   "unload")},
+}
+"""Each ``plan.*`` value and the group computed with it (:meth:`PlacoWalkPlanner.output`)."""
+
+OUTPUT_NAMES: tuple[str, ...] = tuple(_OUTPUT_GROUP)
+"""The ``plan.*`` values of :class:`PlacoWalkPlanner`."""
+
+
 class PlacoWalkPlanner:
     """Footsteps and centre-of-mass / ZMP trajectories from PlaCo, as ``plan.*`` values.
 
@@ -314,6 +328,9 @@ class PlacoWalkPlanner:
         return {"position": np.array(frame(tau))[:3, 3].copy(), "velocity": np.zeros(3),
                 "acceleration": np.zeros(3), "swing": False, "progress": 0.0, "unload": False}
 
+    output_names = OUTPUT_NAMES
+    """The names of :meth:`outputs`."""
+
     def outputs(self, t: float) -> dict[str, Any]:
         """Return the ``plan.*`` values at behavior time ``t`` [s] (clamped to the plan).
 
@@ -329,33 +346,51 @@ class PlacoWalkPlanner:
             BehaviorFileError: Called before :meth:`start`.
 
         """
+        return {name: self.output(name, t) for name in OUTPUT_NAMES}
+
+    def output(self, name: str, t: float) -> Any:
+        """Return one of the :meth:`outputs` at ``t``, computing only its group (kept per ``t``).
+
+        Raises:
+            BehaviorFileError: Called before :meth:`start`.
+            KeyError: Not one of :data:`OUTPUT_NAMES`.
+
+        """
         if self.trajectory is None:
             raise BehaviorFileError("placo_walk planner: outputs() before start()")
-        if self._last is not None and self._last[0] == t:
-            return self._last[1]
+        if self._last is None or self._last[0] != t:
+            self._last = (t, {})
+        values = self._last[1]
+        try:
+            return values[name]
+        except KeyError:
+            pass
+        group = _OUTPUT_GROUP[name]  # KeyError: not an output
         traj = self.trajectory
         tau = min(max(float(t) - self.t_start, 0.0), traj.t_end - 1e-6)
-        both = bool(traj.support_is_both(tau))
-        feet = {side: self._foot(side, tau) for side in _SIDES}
-        out: dict[str, Any] = {
-            "com": np.array(traj.get_p_world_CoM(tau)),
-            "com_velocity": np.array(traj.get_v_world_CoM(tau)),
-            "com_acceleration": np.array(traj.get_a_world_CoM(tau)),
-            "zmp": np.array(traj.get_p_world_ZMP(tau, self.omega)),
-            "trunk_rotation": np.array(traj.get_R_world_trunk(tau)),
-            "double_support": both,
-            "started": float(t) >= self.t_start,
-            "done": float(t) - self.t_start >= traj.t_end,
-            "steps_planned": len(self.footsteps),
-            "swings": len(self.swings),
-            "support_center": 0.5 * (feet["left"]["position"] + feet["right"]["position"]),
-        }
-        for side, f in feet.items():
-            out[f"{side}_foot"] = f["position"]
-            out[f"{side}_foot_velocity"] = f["velocity"]
-            out[f"{side}_foot_acceleration"] = f["acceleration"]
-            out[f"{side}_swing"] = f["swing"]
-            out[f"{side}_swing_progress"] = f["progress"]
-            out[f"{side}_unload"] = f["unload"]
-        self._last = (t, out)
-        return out
+        if group == "com":
+            values["com"] = np.array(traj.get_p_world_CoM(tau))
+            values["com_velocity"] = np.array(traj.get_v_world_CoM(tau))
+            values["com_acceleration"] = np.array(traj.get_a_world_CoM(tau))
+        elif group == "zmp":
+            values["zmp"] = np.array(traj.get_p_world_ZMP(tau, self.omega))
+        elif group == "trunk":
+            values["trunk_rotation"] = np.array(traj.get_R_world_trunk(tau))
+        elif group == "feet":
+            feet = {side: self._foot(side, tau) for side in _SIDES}
+            values["support_center"] = 0.5 * (feet["left"]["position"]
+                                              + feet["right"]["position"])
+            for side, f in feet.items():
+                values[f"{side}_foot"] = f["position"]
+                values[f"{side}_foot_velocity"] = f["velocity"]
+                values[f"{side}_foot_acceleration"] = f["acceleration"]
+                values[f"{side}_swing"] = f["swing"]
+                values[f"{side}_swing_progress"] = f["progress"]
+                values[f"{side}_unload"] = f["unload"]
+        else:
+            values["double_support"] = bool(traj.support_is_both(tau))
+            values["started"] = float(t) >= self.t_start
+            values["done"] = float(t) - self.t_start >= traj.t_end
+            values["steps_planned"] = len(self.footsteps)
+            values["swings"] = len(self.swings)
+        return values[name]

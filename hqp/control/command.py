@@ -162,8 +162,40 @@ class FeasibilityReport:
         """Whether every task is satisfied or inactive and no safe mode was needed."""
         return not self.safe_mode and all(s.feasible for s in self.tasks)
 
+    @property
+    def any_conflict(self) -> bool:
+        """Whether a task is in conflict (:meth:`conflicts` not empty).
+
+        A report made from a step's raw results answers from its residuals without making
+        the :class:`TaskStatus` objects (when its ``statuses`` function has an
+        ``any_conflict`` of its own, as the native step's has).
+        """
+        if self._tasks is None:
+            quick = getattr(self._statuses, "any_conflict", None)
+            if quick is not None:
+                return bool(quick())
+        return any(s.status is Feasibility.CONFLICT for s in self.tasks)
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        """The task names, in the order of :attr:`tasks` (without making the statuses of a
+        report made from a step's raw results)."""
+        if self._tasks is None:
+            quick = getattr(self._statuses, "names", None)
+            if quick is not None:
+                return tuple(quick())
+        return tuple(s.name for s in self.tasks)
+
     def conflicts(self) -> list[TaskStatus]:
-        """Return the tasks in conflict with a higher level or their own."""
+        """Return the tasks in conflict with a higher level or their own.
+
+        A report made from a step's raw results makes only these statuses (when its
+        ``statuses`` function has a ``conflicts`` of its own, as the native step's has).
+        """
+        if self._tasks is None:
+            quick = getattr(self._statuses, "conflicts", None)
+            if quick is not None:
+                return list(quick())
         return [s for s in self.tasks if s.status is Feasibility.CONFLICT]
 
     def singular(self) -> list[TaskStatus]:

@@ -129,6 +129,8 @@ class NativeStepMirror:
         self._names: list[str] = []  # task name by handle
         self._entries: list[tuple[Any, ...]] | None = None  # row placement, after a step
         self._report_order: list[tuple[int, tuple[Any, ...]]] | None = None
+        self._reported: np.ndarray | None = None
+        self._reported_names: list[str] = []
         for task in stack.tasks:
             level = self._native_level(stack.level_of_task(task.name))
             self._add(core, task, level, self._contacts)
@@ -148,6 +150,10 @@ class NativeStepMirror:
             id(task): handle for handle, task, _k in self._goals}
         self._error_handles.update((id(task), None) for task in model_errors)
         self._contact_tasks = [t for t in stack.tasks if isinstance(t, Contact)]
+        self._handles = {task.name: h for h, task in enumerate(stack.tasks)}
+        self._f_max = {t.name: float(t.max_normal_force) for t in self._contact_tasks}
+        self._ramped: dict[int, Any] = {}  # handle -> the offsets pushed (a ramp running)
+        self._recording: list[tuple[int, Any]] = []  # (handle, stack entry) recorded this step
         self._pushed_goals: list[Any] = [None] * len(self._goals)  # the samples pushed last
         self._braking_keys: list[Any] = [None] * len(self._braking)
         self._pushed: dict[str, tuple[bool, Any]] = {
@@ -376,6 +382,12 @@ class NativeStepMirror:
                 continue
             self._braking_keys[i] = key
             s.set_braking(handle, np.asarray(task.braking_deceleration(self.model), dtype=float))
+        f_max = self._f_max
+        for task in self._contact_tasks:  # an unloading contact's bound falls step by step
+            f = task.max_normal_force
+            if f != f_max[task.name]:
+                s.contact(self._contacts[task.name]).set_max_normal_force(f)
+                f_max[task.name] = f
         for handle, task, rows in self._internal:
             s.set_internal_goal(handle, task.goal_of(rows))
         for handle, task in self._cops:
@@ -384,6 +396,43 @@ class NativeStepMirror:
             for k, o in enumerate(obstacles or ()):
                 a, b = o.segment
                 s.set_obstacle(handle, k, a, b, o.velocity, o.radius)
+
+    def sync_ramps(self, ramping: list[Any], t: float, x_prev: np.ndarray | None) -> None:
+        """Push the ramps of the tasks ramping in at ``t`` (``Stack.advance_native``).
+
+        Each ramping kernel's rows keep ``1 - s`` of its offsets (``NativeStep.set_ramp``);
+        offsets not recorded yet are recorded by the step from its own rows at ``x_prev``
+        (``None``: zeros; given back to the stack by :meth:`collect_ramps`), offsets recorded
+        by a Python step are pushed down. A kernel whose ramp ended gets its own rows again.
+        """
+        core = self.step_core
+        self._recording.clear()
+        running = set()
+        for entry in ramping:
+            h = self._handles[entry.task.name]
+            running.add(h)
+            core.set_ramp(h, self.stack.ramp_keep(entry, t))
+            if entry.offsets is None:
+                x = x_prev if x_prev is not None and np.isfinite(x_prev).all() else \
+                    np.zeros(core.n)
+                core.record_ramp(h, x)
+                self._recording.append((h, entry))
+                self._ramped[h] = None
+            elif self._ramped.get(h) is not entry.offsets:
+                sizes = [d.size for d in core.ramp_offsets(h)]
+                core.set_ramp_offsets(h, *(np.zeros(k) if d is None else d
+                                           for d, k in zip(entry.offsets, sizes)))
+                self._ramped[h] = entry.offsets
+        for h in [h for h in self._ramped if h not in running]:
+            core.set_ramp(h, 0.0)
+            del self._ramped[h]
+
+    def collect_ramps(self) -> None:
+        """Give the ramp offsets recorded by the last step to the stack's entries."""
+        for h, entry in self._recording:
+            entry.offsets = tuple(d if d.size else None for d in self.step_core.ramp_offsets(h))
+            self._ramped[h] = entry.offsets
+        self._recording.clear()
 
     def sync_contacts(self) -> bool:
         """Push each contact's activation and stabilisation reference to its kernel.
@@ -483,14 +532,38 @@ class NativeStepMirror:
             self._report_order = sorted(enumerate(self._placements()), key=lambda e: e[1][2])
         costs, level_sigma, weak, residuals = core.report_data()
         if not diagnostics.full:
-            return (lambda: self._statuses(diagnostics, residuals, level_sigma, weak, None),
-                    costs, None)
+            return _LazyStatuses(self, diagnostics, residuals, level_sigma, weak), costs, None
         sigmas = core.diagnose()
         statuses = self._statuses(diagnostics, residuals, level_sigma, weak, sigmas)
         if statuses is None:  # a conflict: the level it yields to, from the levels
             built, solution = self.built()
             return diagnostics.hqp_statuses(built, solution), costs, built
         return statuses, costs, None
+
+    def reported_handles(self) -> np.ndarray:
+        """Handles of the kernels with rows in the levels (those :meth:`_statuses` reports)."""
+        if self._reported is None:
+            assert self._report_order is not None
+            self._reported = np.array(
+                [h for h, (_k, _l, built, _e0, neq, _i0, nin, _w) in self._report_order
+                 if neq + nin and built >= 0], dtype=np.intp)
+            self._reported_names = [self._names[h] for h in self._reported]
+        return self._reported
+
+    def reported_names(self) -> list[str]:
+        """Names of :meth:`reported_handles`, in order."""
+        self.reported_handles()
+        return self._reported_names
+
+    def status(self, diagnostics: Diagnostics, handle: int, residuals: np.ndarray,
+               level_sigma: np.ndarray, weak: np.ndarray) -> TaskStatus:
+        """The ``"residuals"``-mode status of one reported kernel (as :meth:`_statuses`)."""
+        _kind, level, built_level, _e0, neq, _i0, _nin, _w = self._placements()[handle]
+        sigma = float(level_sigma[built_level]) if neq else math.nan
+        residual = float(residuals[handle])
+        return TaskStatus(self._names[handle], self.stack_level(level),
+                          diagnostics.classify(residual, sigma, neq > 0), residual, None,
+                          sigma, int(weak[built_level]))
 
     def _statuses(self, diagnostics: Diagnostics, residuals: np.ndarray,
                   level_sigma: np.ndarray, weak: np.ndarray,
@@ -568,6 +641,47 @@ class NativeStepMirror:
         return BuiltStack(levels, tuple(index), tuple(spans), rows, n), solution
 
 
+class _LazyStatuses:
+    """The statuses of one native step (``"residuals"`` mode), made when first called.
+
+    :meth:`any_conflict` answers from the step's residuals alone (a status is a conflict
+    exactly when its residual exceeds the diagnostics' tolerance, ``Diagnostics.classify``).
+    """
+
+    __slots__ = ("mirror", "diagnostics", "residuals", "level_sigma", "weak")
+
+    def __init__(self, mirror: NativeStepMirror, diagnostics: Diagnostics,
+                 residuals: np.ndarray, level_sigma: np.ndarray, weak: np.ndarray) -> None:
+        self.mirror = mirror
+        self.diagnostics = diagnostics
+        self.residuals = residuals
+        self.level_sigma = level_sigma
+        self.weak = weak
+
+    def __call__(self) -> tuple[TaskStatus, ...]:
+        statuses = self.mirror._statuses(self.diagnostics, self.residuals, self.level_sigma,
+                                         self.weak, None)
+        assert statuses is not None  # (None only in "full" mode)
+        return statuses
+
+    def any_conflict(self) -> bool:
+        """Whether a reported kernel's residual exceeds the tolerance (a conflict)."""
+        r = self.residuals[self.mirror.reported_handles()]
+        return bool(np.any(r > self.diagnostics.tolerance))
+
+    def names(self) -> list[str]:
+        """The names of the statuses, in their order."""
+        return self.mirror.reported_names()
+
+    def conflicts(self) -> list[TaskStatus]:
+        """The statuses of the kernels in conflict alone (those :meth:`__call__` makes)."""
+        mirror = self.mirror
+        handles = mirror.reported_handles()
+        hit = handles[self.residuals[handles] > self.diagnostics.tolerance]
+        return [mirror.status(self.diagnostics, int(h), self.residuals, self.level_sigma,
+                              self.weak) for h in hit]
+
+
 class ErrorSource:
     """The task errors of one native step of a controller, fetched when first read.
 
@@ -623,8 +737,8 @@ def _extractor(cls: type) -> _Extractor:
     """
     extra: _Extractor | None = None
     names: tuple[str, ...] = ()
-    if issubclass(cls, Contact):
-        names = ("mu", "f_min", "max_normal_force", "kp", "kd")
+    if issubclass(cls, Contact):  # (max_normal_force: pushed each step, push_goals)
+        names = ("mu", "f_min", "kp", "kd")
     elif issubclass(cls, TorqueLimits):
         names, extra = ("scale",), _tau_bytes
     elif issubclass(cls, JointLimits):
@@ -703,6 +817,8 @@ class NativeEngine:
         self.unsupported: str | None = None
         self._signature: tuple[Any, ...] | None = None
         self.steps = 0
+        self.steady = True
+        """Whether the stack was steady at the last :meth:`ready` (else: ramps, unloading)."""
 
     def signature(self, controller: Any) -> tuple[Any, ...]:
         """Return what a mirror is built from: the controller's stack structure.
@@ -718,8 +834,10 @@ class NativeEngine:
     def ready(self, controller: Any, t: float) -> NativeStepMirror | None:
         """Return the mirror to run this step, or ``None`` when the Python step must run it."""
         stack = controller.stack
-        if not stack.steady(t) or controller.final_metric is not None \
-                or controller.final_target is not None:
+        if controller.final_metric is not None or controller.final_target is not None:
+            return None
+        self.steady = stack.steady(t)
+        if not self.steady and not stack.native_ready(t):  # ramps and unloading: native
             return None
         signature = self.signature(controller)
         if signature != self._signature:

@@ -479,8 +479,12 @@ class WholeBodyController(Controller):
         mirror = self.native.ready(self, t)
         if mirror is None:
             return None
-        # steady (ready() checked it): advancing tells contact-aware tasks the active contacts
-        self.stack.advance_steady()
+        if self.native.steady:  # advancing tells contact-aware tasks the active contacts
+            self.stack.advance_steady()
+            ramping = []
+        else:  # tasks ramping in, goal ramps, contacts unloading (ready() checked it)
+            ramping = self.stack.advance_native(self.model, self.layout, t, self.last_x)
+        mirror.sync_ramps(ramping, t, self.last_x)
         clock = time.perf_counter
         if mirror.has_torque_rate:
             assert self.max_torque_rate is not None
@@ -490,6 +494,7 @@ class WholeBodyController(Controller):
         except RuntimeError as exc:  # the Python step solves it on the fallback backend
             self._native_failure = str(exc).splitlines()[0] if str(exc) else "failed"
             return None
+        mirror.collect_ramps()
         mirror.record_errors(ErrorSource(mirror, self, self.step_serial))
         self.model.provide(mirror.quantity)  # the core's pass at this state, for readers
         t3 = clock()

@@ -175,6 +175,15 @@ class Simulator:
         # bodies of each foot's subtree (a toe is part of its foot)
         self._foot_subtrees = [[b for b in range(1, self.mj_model.nbody)
                                 if self._body_root_foot(b) == i] for i in range(len(robot.feet))]
+        # per geom: -2 a floor geom, the index of the foot it belongs to, or -1
+        self._geom_role = np.full(self.mj_model.ngeom, -1, dtype=np.intp)
+        for g in range(self.mj_model.ngeom):
+            body = int(self.mj_model.geom_bodyid[g])
+            foot = self._body_root_foot(body)
+            self._geom_role[g] = -2 if g in self._floor_geoms else (-1 if foot is None else foot)
+        self._feet = tuple(robot.feet)
+        self._foot_site_index = np.array(self._foot_sites, dtype=np.intp)
+        self._wrench = np.zeros(6)
         self._welds = np.zeros(0, dtype=int)
         if contacts == "welded":
             self._welds = np.array([mujoco.mj_name2id(self.mj_model, mujoco.mjtObj.mjOBJ_EQUALITY,
@@ -248,7 +257,7 @@ class Simulator:
         q, v = self.converter.state_from_data(self.mj_data)
         if reading is None:
             reading = self.contacts()
-        contacts = {f: bool(c) for f, c in zip(self.robot.feet, reading.foot_contact)}
+        contacts = dict(zip(self._feet, reading.foot_contact.tolist()))
         return RobotState(q=q, v=v, t=self.time, contacts=contacts)
 
     # -- stepping ---------------------------------------------------------------------------
@@ -301,30 +310,31 @@ class Simulator:
         touching = np.zeros(nfeet, dtype=bool)
         normal = np.zeros(nfeet)
         others: set[str] = set()
-        wrench = np.zeros(6)
         fz_sum = 0.0
         moment = np.zeros(2)
-        for i in range(d.ncon):
-            con = d.contact[i]
-            g1, g2 = int(con.geom1), int(con.geom2)
-            if g1 in self._floor_geoms:
-                other = g2
-            elif g2 in self._floor_geoms:
-                other = g1
-            else:
-                continue
-            body = int(m.geom_bodyid[other])
-            foot = self._body_root_foot(body)
-            mujoco.mj_contactForce(m, d, i, wrench)
-            fn = float(wrench[0])  # normal force in the contact frame
-            if foot is None:
+        ncon = int(d.ncon)
+        if ncon:
+            contact = d.contact
+            role = self._geom_role[contact.geom]  # (ncon, 2)
+            floor1, floor2 = role[:, 0] == -2, role[:, 1] == -2
+            other = np.where(floor1, contact.geom[:, 1], contact.geom[:, 0])
+            foot = np.where(floor1, role[:, 1], role[:, 0])
+            with_floor = np.flatnonzero(floor1 | floor2)
+            fn = np.zeros(ncon)
+            wrench = self._wrench
+            for i in with_floor.tolist():
+                mujoco.mj_contactForce(m, d, i, wrench)
+                fn[i] = wrench[0]  # normal force in the contact frame
+            for i in with_floor[foot[with_floor] < 0].tolist():
+                body = int(m.geom_bodyid[int(other[i])])
                 others.add(mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, body) or str(body))
-                continue
-            touching[foot] = True
-            normal[foot] += fn
-            fz_sum += fn
-            moment += fn * con.pos[:2]
-        feet = np.array([d.site_xpos[s] for s in self._foot_sites])
+            on_foot = with_floor[foot[with_floor] >= 0]
+            if on_foot.size:
+                touching[foot[on_foot]] = True
+                np.add.at(normal, foot[on_foot], fn[on_foot])
+                fz_sum = float(fn[on_foot].sum())
+                moment = fn[on_foot] @ contact.pos[on_foot, :2]
+        feet = d.site_xpos[self._foot_site_index]  # (a copy)
         if self._welds.size:  # the welds carry the support: their wrenches give force and CoP
             wrenches = self.foot_wrenches()
             touching[:] = True

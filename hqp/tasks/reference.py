@@ -225,6 +225,13 @@ def min_jerk(s: float) -> float:
     return s * s * s * (10.0 + s * (-15.0 + 6.0 * s))
 
 
+def _frozen(sample: TrajectorySample) -> TrajectorySample:
+    """The sample with its arrays read-only (a sample returned at every call)."""
+    for array in (sample.position, sample.velocity, sample.acceleration):
+        array.setflags(write=False)
+    return sample
+
+
 def min_jerk_profile(tau: float, duration: float) -> tuple[float, float, float]:
     """Minimum-jerk fraction and its first two time derivatives.
 
@@ -318,15 +325,22 @@ class MinimumJerk:
         )
         self._v0 = v0
         self._a0 = a0
+        self._ends: list[TrajectorySample | None] = [None, None]  # (before, after)
 
     def sample(self, t: float) -> TrajectorySample:
-        """Position, velocity and acceleration ``(m,)`` each at time ``t`` [s]."""
+        """Position, velocity and acceleration ``(m,)`` each at time ``t`` [s].
+
+        Before the start and after the end, the same read-only sample at every call (a
+        controller holding the goal then pushes nothing down)."""
         tau = float(t) - self.t0
         m = self.start.shape[0]
-        if tau <= 0.0:
-            return TrajectorySample(self.start.copy(), np.zeros(m), np.zeros(m))
-        if tau >= self.duration:
-            return TrajectorySample(self.goal.copy(), np.zeros(m), np.zeros(m))
+        if tau <= 0.0 or tau >= self.duration:
+            end = tau > 0.0
+            cached = self._ends[end]
+            if cached is None:
+                cached = self._ends[end] = _frozen(TrajectorySample(
+                    (self.goal if end else self.start).copy(), np.zeros(m), np.zeros(m)))
+            return cached
         c = self._c
         p = c[0] + tau * (c[1] + tau * (c[2] + tau * (c[3] + tau * (c[4] + tau * c[5]))))
         v = c[1] + tau * (2 * c[2] + tau * (3 * c[3] + tau * (4 * c[4] + tau * 5 * c[5])))
@@ -386,10 +400,23 @@ class MinimumJerkRotation:
         self.duration, self.t0 = _check_timing(duration, t0, where)
         self._w = pin.log3(self.start.T @ self.goal)
         self._w_world = self.start @ self._w
+        self._ends: list[TrajectorySample | None] = [None, None]  # (before, after)
 
     def sample(self, t: float) -> TrajectorySample:
-        """Rotation ``(3, 3)``, world angular velocity and acceleration ``(3,)`` at ``t``."""
-        s, ds, dds = min_jerk_profile(float(t) - self.t0, self.duration)
+        """Rotation ``(3, 3)``, world angular velocity and acceleration ``(3,)`` at ``t``.
+
+        Before the start and after the end, the same read-only sample at every call."""
+        tau = float(t) - self.t0
+        if tau <= 0.0 or tau >= self.duration:
+            end = tau > 0.0
+            cached = self._ends[end]
+            if cached is None:
+                cached = self._ends[end] = _frozen(self._sample(tau))
+            return cached
+        return self._sample(tau)
+
+    def _sample(self, tau: float) -> TrajectorySample:
+        s, ds, dds = min_jerk_profile(tau, self.duration)
         R = self.start @ pin.exp3(s * self._w)
         return TrajectorySample(R, ds * self._w_world, dds * self._w_world)
 
@@ -414,9 +441,22 @@ class MinimumJerkPose:
         H1 = check_placement(goal, f"{where}: goal")
         self._p = MinimumJerk(H0[:3, 3], H1[:3, 3], duration, t0)
         self._r = MinimumJerkRotation(H0[:3, :3], H1[:3, :3], duration, t0)
+        self._ends: list[TrajectorySample | None] = [None, None]  # (before, after)
 
     def sample(self, t: float) -> TrajectorySample:
-        """Placement ``(4, 4)``, velocity and acceleration ``(6,)`` at ``t``."""
+        """Placement ``(4, 4)``, velocity and acceleration ``(6,)`` at ``t``.
+
+        Before the start and after the end, the same read-only sample at every call."""
+        tau = float(t) - self._p.t0
+        if tau <= 0.0 or tau >= self._p.duration:
+            end = tau > 0.0
+            cached = self._ends[end]
+            if cached is None:
+                cached = self._ends[end] = _frozen(self._sample(t))
+            return cached
+        return self._sample(t)
+
+    def _sample(self, t: float) -> TrajectorySample:
         p = self._p.sample(t)
         r = self._r.sample(t)
         H = np.eye(4)

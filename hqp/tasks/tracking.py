@@ -213,8 +213,8 @@ class TrackingTask(Task):
         """Return the goal and its derivatives at time ``t`` (validated).
 
         A sample of a bundled trajectory (``MinimumJerk``, ``MinimumJerkRotation``,
-        ``MinimumJerkPose``: endpoints and timing validated when built, fresh finite arrays
-        at every time) is not validated again once its shapes were checked by
+        ``MinimumJerkPose``: endpoints and timing validated when built, finite arrays, fresh
+        within the motion and one read-only sample before and after it) is not validated again once its shapes were checked by
         :meth:`set_trajectory` (about 40 us per orientation sample); any other trajectory's
         samples are validated at every call.
 

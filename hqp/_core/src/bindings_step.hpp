@@ -161,6 +161,20 @@ inline void bind_step(nb::module_& m) {
           nb::arg("handle"),
           "(e, de/dt) of a tracking, orientation, gaze or pose kernel at the last step (e = current - goal).")
       .def("set_braking", &NativeStep::set_braking, nb::arg("handle"), nb::arg("braking"))
+      .def("set_ramp", &NativeStep::set_ramp, nb::arg("handle"), nb::arg("keep"),
+           "A kernel ramping in: its targets moved by keep (= 1 - s) times its ramp offsets.")
+      .def("record_ramp", &NativeStep::record_ramp, nb::arg("handle"), nb::arg("x_prev"),
+           "Record a kernel's ramp offsets at the next step from its rows and x_prev.")
+      .def("set_ramp_offsets", &NativeStep::set_ramp_offsets, nb::arg("handle"),
+           nb::arg("d_eq"), nb::arg("d_lo"), nb::arg("d_up"))
+      .def(
+          "ramp_offsets",
+          [](const NativeStep& s, int handle) {
+            const NativeStep::RampOffsets o = s.ramp_offsets(handle);
+            return nb::make_tuple(Eigen::VectorXd(o.d_eq), Eigen::VectorXd(o.d_lo),
+                                  Eigen::VectorXd(o.d_up));
+          },
+          nb::arg("handle"), "(d_eq, d_lo, d_up): a kernel's ramp offsets (unweighted).")
       .def("add_torque_rate", &NativeStep::add_torque_rate, nb::arg("level"), nb::arg("weight"))
       .def("set_torque_rate", &NativeStep::set_torque_rate, nb::arg("handle"), nb::arg("tau_lo"),
            nb::arg("tau_hi"))

@@ -269,6 +269,8 @@ inline void bind_tasks(nb::module_& m) {
           nb::arg("half_length"), nb::arg("half_width"), nb::arg("f_min"), nb::arg("f_max"),
           nb::arg("kp"), nb::arg("kd"))
       .def("deactivate", &ContactKernel::deactivate)
+      .def("set_max_normal_force", &ContactKernel::set_max_normal_force, nb::arg("f_max"))
+      .def_prop_ro("max_normal_force", &ContactKernel::max_normal_force)
       .def(
           "activate",
           [](ContactKernel& k, std::optional<Eigen::Matrix4d> T) {

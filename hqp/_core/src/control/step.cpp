@@ -18,6 +18,7 @@ NativeStep::NativeStep(std::unique_ptr<RobotCore> robot, Index nv_base, LayoutC 
   G_.setZero(robot_->nv(), n_);
   J6_.setZero(6, robot_->nv());
   tau_.setZero(na_);
+  x_ramp_.setZero(n_);
   weak_.assign(std::size_t(std::max(n_levels_, 0)), 0.0);
 }
 
@@ -27,6 +28,9 @@ int NativeStep::add(Kind kind, int level, double weight, int index, Index neq, I
   Entry e{kind, level, std::sqrt(weight), index};
   e.neq = neq;
   e.nin = nin;
+  e.d_eq.setZero(neq);
+  e.d_lo.setZero(nin);
+  e.d_up.setZero(nin);
   entries_.push_back(e);
   laid_out_ = false;
   return int(entries_.size()) - 1;
@@ -187,6 +191,45 @@ void NativeStep::set_braking(int handle, const Eigen::VectorXd& braking) {
   j.B = braking;
 }
 
+const NativeStep::Entry& NativeStep::entry_at(int handle) const {
+  if (handle < 0 || handle >= int(entries_.size())) throw std::invalid_argument("no such handle");
+  return entries_[std::size_t(handle)];
+}
+
+void NativeStep::set_ramp(int handle, double keep) {
+  entry_at(handle);
+  if (!(keep >= 0.0 && keep <= 1.0)) throw std::invalid_argument("ramp: keep must be in [0, 1]");
+  entries_[std::size_t(handle)].keep = keep;
+}
+
+void NativeStep::record_ramp(int handle, const Eigen::Ref<const Eigen::VectorXd>& x_prev) {
+  entry_at(handle);
+  if (x_prev.size() != n_) throw std::invalid_argument("ramp: x_prev must be (n,)");
+  if (!x_prev.allFinite()) throw std::invalid_argument("ramp: x_prev holds NaN or inf");
+  x_ramp_ = x_prev;  // in place: sized at construction
+  entries_[std::size_t(handle)].record = true;
+}
+
+void NativeStep::set_ramp_offsets(int handle, const Eigen::Ref<const Eigen::VectorXd>& d_eq,
+                                  const Eigen::Ref<const Eigen::VectorXd>& d_lo,
+                                  const Eigen::Ref<const Eigen::VectorXd>& d_up) {
+  entry_at(handle);
+  Entry& e = entries_[std::size_t(handle)];
+  if (d_eq.size() != e.neq || d_lo.size() != e.nin || d_up.size() != e.nin)
+    throw std::invalid_argument("ramp offsets: one per equality row and two per inequality row");
+  if (!d_eq.allFinite() || !d_lo.allFinite() || !d_up.allFinite())
+    throw std::invalid_argument("ramp offsets: NaN or inf");
+  e.d_eq = d_eq;
+  e.d_lo = d_lo;
+  e.d_up = d_up;
+  e.record = false;
+}
+
+NativeStep::RampOffsets NativeStep::ramp_offsets(int handle) const {
+  const Entry& e = entry_at(handle);
+  return {e.d_eq, e.d_lo, e.d_up};
+}
+
 void NativeStep::set_weak_threshold(int level, double threshold) {
   if (level < 0 || level >= n_levels_) throw std::out_of_range("weak threshold: no such level");
   if (!(threshold >= 0.0 && threshold < std::numeric_limits<double>::infinity())) {
@@ -301,7 +344,7 @@ std::string NativeStep::rows(const Eigen::Ref<const Eigen::VectorXd>& q,
   robot.update(q, v);
   contact_dynamics(robot, layout_, G_, J6_);
   auto& data = hierarchy_.levels();
-  for (const Entry& e : entries_) {
+  for (Entry& e : entries_) {
     LevelData& lv = data[std::size_t(built_of_[std::size_t(e.level)])];
     auto A = lv.A.middleRows(e.eq0, e.neq);
     auto b = lv.b.segment(e.eq0, e.neq);
@@ -377,6 +420,22 @@ std::string NativeStep::rows(const Eigen::Ref<const Eigen::VectorXd>& q,
       case Kind::kCoP:
         cop_[std::size_t(e.index)].write(robot, A, b);
         break;
+    }
+    if (e.record) {  // the ramp's first step: its offsets at x_prev (hqp.stack._ramp_offsets)
+      e.record = false;
+      e.d_eq.noalias() = A * x_ramp_;
+      e.d_eq -= b;
+      e.d_lo.noalias() = C * x_ramp_;
+      e.d_up = e.d_lo;
+      for (Index i = 0; i < e.nin; ++i) {
+        e.d_lo(i) = std::isfinite(lo(i)) ? std::min(e.d_lo(i) - lo(i), 0.0) : 0.0;
+        e.d_up(i) = std::isfinite(up(i)) ? std::max(e.d_up(i) - up(i), 0.0) : 0.0;
+      }
+    }
+    if (e.keep != 0.0) {  // a ramp: targets moved by keep times the offsets (hqp.stack._ramp)
+      b += e.keep * e.d_eq;
+      lo += e.keep * e.d_lo;
+      up += e.keep * e.d_up;
     }
     if (e.sqrt_w != 1.0) {
       A *= e.sqrt_w;

@@ -75,6 +75,26 @@ class NativeStep {
   void set_torque_rate(int handle, const Eigen::Ref<const Eigen::VectorXd>& tau_lo,
                        const Eigen::Ref<const Eigen::VectorXd>& tau_hi);
 
+  /// A task ramping in (hqp.stack): its rows' targets move by keep * the offsets recorded
+  /// at the ramp's first step, b + keep d_eq and the bounds widened by keep d_lo, keep d_up,
+  /// before the weight's scaling (keep = 1 - s, s the ramp fraction; 0: the rows as they are).
+  void set_ramp(int handle, double keep);
+  /// Record the ramp offsets of a kernel at the next step from its (unweighted) rows and
+  /// x_prev: d_eq = A x_prev - b, d_lo = min(0, C x_prev - lo) and d_up = max(0, C x_prev -
+  /// up) on finite bounds (0 elsewhere), as hqp.stack records them. One x_prev per step.
+  void record_ramp(int handle, const Eigen::Ref<const Eigen::VectorXd>& x_prev);
+  /// Set a kernel's ramp offsets (recorded by a Python step).
+  void set_ramp_offsets(int handle, const Eigen::Ref<const Eigen::VectorXd>& d_eq,
+                        const Eigen::Ref<const Eigen::VectorXd>& d_lo,
+                        const Eigen::Ref<const Eigen::VectorXd>& d_up);
+  /// The ramp offsets (d_eq, d_lo, d_up) of a kernel.
+  struct RampOffsets {
+    const Eigen::VectorXd& d_eq;
+    const Eigen::VectorXd& d_lo;
+    const Eigen::VectorXd& d_up;
+  };
+  RampOffsets ramp_offsets(int handle) const;
+
   /// The weak-direction threshold of stack level `level` (hqp.solver.Level.weak_threshold,
   /// in the units of the level's weighted rows; 0, the default: no filtering).
   void set_weak_threshold(int level, double threshold);
@@ -129,7 +149,11 @@ class NativeStep {
     double sqrt_w;
     int index;  // into the kernel list of its kind
     Index neq = 0, nin = 0, eq0 = 0, in0 = 0;
+    double keep = 0.0;    // a ramp: 1 - s (0: none)
+    bool record = false;  // record the ramp offsets at the next step
+    Eigen::VectorXd d_eq, d_lo, d_up;  // ramp offsets (unweighted row units)
   };
+  const Entry& entry_at(int handle) const;
   struct JointLimitEntry {
     JointLimitParams params;
     Eigen::VectorXd A, B, lb, ub;
@@ -164,6 +188,7 @@ class NativeStep {
   Eigen::MatrixXd G_;
   RobotCore::Matrix6Xd J6_;
   Eigen::VectorXd tau_;
+  Eigen::VectorXd x_ramp_;  // the x_prev of the ramp offsets recorded at the next step
   Eigen::VectorXd residual_;
   Eigen::VectorXd sigma_;
   Eigen::MatrixXd Zd_, Zn_, Md_, Pd_;

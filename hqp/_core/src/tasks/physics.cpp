@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <limits>
+#include <stdexcept>
 
 namespace hqp {
 
@@ -48,6 +49,12 @@ ContactKernel::ContactKernel(const ContactSlotC& slot, double mu, double half_le
                              double half_width, double f_min, double f_max, double kp, double kd)
     : slot_(slot), local_(contact_local_limits(slot.size, mu, half_length, half_width)),
       f_min_(f_min), f_max_(f_max), kp_(kp), kd_(kd) {}
+
+void ContactKernel::set_max_normal_force(double f_max) {
+  if (std::isnan(f_max) || f_max < f_min_)
+    throw std::invalid_argument("contact: max_normal_force must be >= f_min and not NaN");
+  f_max_ = f_max;
+}
 
 void ContactKernel::write(const RobotCore& robot, Eigen::Ref<Eigen::MatrixXd> A,
                           Eigen::Ref<Eigen::VectorXd> b) {

@@ -51,6 +51,9 @@ class ContactKernel {
   void activate(const pinocchio::SE3& reference) { activate(); set_reference(reference); }
   /// Released: the slot is held at zero.
   void deactivate() { active_ = false; has_reference_ = false; }
+  /// The upper bound of the normal force (a contact unloading lowers it step by step).
+  void set_max_normal_force(double f_max);
+  double max_normal_force() const { return f_max_; }
   Eigen::Index rows() const { return slot_.size; }
   Eigen::Index limit_rows() const { return local_.rows(); }
   /// Condition rows (size, n): J_c qdd = -drift - kd v - kp e, or f_c = 0 when inactive.
