@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "bindings_numpy.hpp"
 #include "bindings_release.hpp"
 #include "control/law.hpp"
 #include "solver/linalg.hpp"
@@ -76,12 +77,12 @@ inline void bind_law(nb::module_& m) {
           nb::arg("starts"), nb::arg("eig_tol"), nb::arg("min_norm"),
           nb::arg("forbid_malloc") = false,
           "Dynamics, levels and internal forces; returns '' or why the law cannot run.")
-      .def_prop_ro("tau", [](const NullSpaceLaw& l) { return Eigen::VectorXd(l.tau()); })
+      .def_prop_ro("tau", [](const NullSpaceLaw& l) { return to_numpy(l.tau()); })
       .def_prop_ro("tau_internal",
-                   [](const NullSpaceLaw& l) { return Eigen::VectorXd(l.tau_internal()); })
-      .def_prop_ro("qdd", [](const NullSpaceLaw& l) { return Eigen::VectorXd(l.qdd()); })
-      .def_prop_ro("f", [](const NullSpaceLaw& l) { return Eigen::VectorXd(l.f()); })
-      .def_prop_ro("qdd0", [](const NullSpaceLaw& l) { return Eigen::VectorXd(l.qdd0()); })
+                   [](const NullSpaceLaw& l) { return to_numpy(l.tau_internal()); })
+      .def_prop_ro("qdd", [](const NullSpaceLaw& l) { return to_numpy(l.qdd()); })
+      .def_prop_ro("f", [](const NullSpaceLaw& l) { return to_numpy(l.f()); })
+      .def_prop_ro("qdd0", [](const NullSpaceLaw& l) { return to_numpy(l.qdd0()); })
       .def_prop_ro("phi", [](const NullSpaceLaw& l) { return Eigen::MatrixXd(l.phi()); })
       .def_prop_ro("phi_pinv",
                    [](const NullSpaceLaw& l) { return Eigen::MatrixXd(l.phi_pinv()); })
@@ -90,10 +91,10 @@ inline void bind_law(nb::module_& m) {
       .def_prop_ro("whiten", [](const NullSpaceLaw& l) { return Eigen::MatrixXd(l.whiten()); })
       .def_prop_ro("rank", &NullSpaceLaw::rank)
       .def_prop_ro("eigenvalues",
-                   [](const NullSpaceLaw& l) { return Eigen::VectorXd(l.eigenvalues()); })
-      .def_prop_ro("forces", [](const NullSpaceLaw& l) { return Eigen::VectorXd(l.forces()); })
+                   [](const NullSpaceLaw& l) { return to_numpy(l.eigenvalues()); })
+      .def_prop_ro("forces", [](const NullSpaceLaw& l) { return to_numpy(l.forces()); })
       .def_prop_ro("residuals",
-                   [](const NullSpaceLaw& l) { return Eigen::VectorXd(l.residuals()); })
+                   [](const NullSpaceLaw& l) { return to_numpy(l.residuals()); })
       .def("levels", &law_detail::levels,
            "Per level: (start, rows, rank, free, threshold, target_norm).")
       .def(
@@ -159,8 +160,8 @@ inline void bind_law(nb::module_& m) {
           "One step of the law (GIL released): the NativeStep's model pass and rows, the "
           "activation zones, the law, x and the report's numbers. Returns '' or why the law "
           "cannot run this step (the Python law then runs it).")
-      .def_prop_ro("x", [](const NativeLaw& s) { return Eigen::VectorXd(s.x()); })
-      .def_prop_ro("tau", [](const NativeLaw& s) { return Eigen::VectorXd(s.tau()); })
+      .def_prop_ro("x", [](const NativeLaw& s) { return to_numpy(s.x()); })
+      .def_prop_ro("tau", [](const NativeLaw& s) { return to_numpy(s.tau()); })
       .def_prop_ro("law", [](const NativeLaw& s) -> const NullSpaceLaw& { return s.law(); },
                    nb::rv_policy::reference_internal)
       .def(
@@ -185,7 +186,9 @@ inline void bind_law(nb::module_& m) {
               cost[j] = s.level_cost(j);
               present[j] = s.level_present(j);
             }
-            return nb::make_tuple(residual, eig, flags, level, start, count, cost, present);
+            return nb::make_tuple(to_numpy(residual), to_numpy(eig), to_numpy(flags), to_numpy(level),
+                                  to_numpy(start), to_numpy(count), to_numpy(cost),
+                                  to_numpy(present));
           },
           "Per source (residual, eig_min, flags: 1 rows present, 2 force rows at a task "
           "level, 4 singular, law level, start, rows) and per stack level (cost, present).")
@@ -204,9 +207,8 @@ inline void bind_law(nb::module_& m) {
           "zone",
           [](const NativeLaw& s, int source) {
             const JointLimitZoneKernel& z = s.zone(source);
-            return nb::make_tuple(Eigen::VectorXi(z.active.head(z.count)),
-                                  Eigen::VectorXd(z.error.head(z.count)),
-                                  Eigen::VectorXd(z.ref.head(z.count)));
+            return nb::make_tuple(to_numpy(z.active.head(z.count)), to_numpy(z.error.head(z.count)),
+                                  to_numpy(z.ref.head(z.count)));
           },
           nb::arg("source"), "(active joints, q_limit - q, qdd_ref) of a zone at the last step.")
       .def(
@@ -218,10 +220,10 @@ inline void bind_law(nb::module_& m) {
           },
           "The stack level of each law level of the last step.")
       .def_prop_ro("rows", [](const NativeLaw& s) { return Eigen::MatrixXd(s.rows()); })
-      .def_prop_ro("targets", [](const NativeLaw& s) { return Eigen::VectorXd(s.targets()); })
+      .def_prop_ro("targets", [](const NativeLaw& s) { return to_numpy(s.targets()); })
       .def_prop_ro("support", [](const NativeLaw& s) { return Eigen::MatrixXd(s.support()); })
       .def_prop_ro("support_targets",
-                   [](const NativeLaw& s) { return Eigen::VectorXd(s.support_targets()); });
+                   [](const NativeLaw& s) { return to_numpy(s.support_targets()); });
 }
 
 }  // namespace hqp

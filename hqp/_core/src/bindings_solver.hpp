@@ -17,6 +17,7 @@
 #include <memory>
 #include <string>
 
+#include "bindings_numpy.hpp"
 #include "bindings_release.hpp"
 #include "solver/active_set.hpp"
 #include "solver/hierarchy.hpp"
@@ -27,16 +28,6 @@ namespace hqp {
 namespace nb = nanobind;
 using DMat = nb::DRef<const Eigen::MatrixXd>;
 using DVec = nb::DRef<const Eigen::VectorXd>;
-
-/// A new NumPy array (owning a copy of `n` values), without a Python-level copy.
-template <typename T>
-nb::object to_numpy(const T* data, std::size_t n) {
-  T* buf = new T[n > 0 ? n : 1];
-  std::copy(data, data + n, buf);
-  nb::capsule owner(buf, [](void* q) noexcept { delete[] static_cast<T*>(q); });
-  return nb::cast(nb::ndarray<nb::numpy, T, nb::ndim<1>>(buf, {n}, owner),
-                  nb::rv_policy::reference);
-}
 
 /// The first malformed level (-1: none): shapes, NaN or inf in A, b, C, NaN in a bound,
 /// lower > upper, +inf lower, -inf upper. Python explains it (hqp.solver.level).

@@ -13,6 +13,7 @@
 #include <tuple>
 #include <vector>
 
+#include "bindings_numpy.hpp"
 #include "bindings_release.hpp"
 #include "bindings_tasks.hpp"
 #include "control/step.hpp"
@@ -114,7 +115,7 @@ inline void bind_step(nb::module_& m) {
           nb::arg("radius"))
       .def(
           "margins",
-          [](NativeStep& s, int handle) { return Eigen::VectorXd(s.distance(handle).margins()); },
+          [](NativeStep& s, int handle) { return to_numpy(s.distance(handle).margins()); },
           nb::arg("handle"), "d - d_safe per pair of a distance kernel at the last step.")
       .def(
           "set_goal",
@@ -144,19 +145,19 @@ inline void bind_step(nb::module_& m) {
           [](NativeStep& s, int handle) {
             const bool known = handle >= 0 && handle < s.entry_count();
             if (known && s.entry_kind(handle) == NativeStep::Kind::kOrientation) {
-              return nb::make_tuple(Eigen::VectorXd(s.orientation(handle).error()),
-                                    Eigen::VectorXd::Zero(3).eval());
+              return nb::make_tuple(to_numpy(s.orientation(handle).error()),
+                                    to_numpy(Eigen::Vector3d::Zero().eval()));
             }
             if (known && s.entry_kind(handle) == NativeStep::Kind::kGaze) {
               const GazeKernel& g = s.gaze(handle);
-              return nb::make_tuple(Eigen::VectorXd(g.error()), Eigen::VectorXd(g.rate()));
+              return nb::make_tuple(to_numpy(g.error()), to_numpy(g.rate()));
             }
             if (known && s.entry_kind(handle) == NativeStep::Kind::kPose) {
               const PoseKernel& p = s.pose(handle);
-              return nb::make_tuple(Eigen::VectorXd(p.error()), Eigen::VectorXd(p.rate()));
+              return nb::make_tuple(to_numpy(p.error()), to_numpy(p.rate()));
             }
             const VectorTracking& t = s.tracking(handle);
-            return nb::make_tuple(Eigen::VectorXd(t.error()), Eigen::VectorXd(t.rate()));
+            return nb::make_tuple(to_numpy(t.error()), to_numpy(t.rate()));
           },
           nb::arg("handle"),
           "(e, de/dt) of a tracking, orientation, gaze or pose kernel at the last step (e = current - goal).")
@@ -171,8 +172,7 @@ inline void bind_step(nb::module_& m) {
           "ramp_offsets",
           [](const NativeStep& s, int handle) {
             const NativeStep::RampOffsets o = s.ramp_offsets(handle);
-            return nb::make_tuple(Eigen::VectorXd(o.d_eq), Eigen::VectorXd(o.d_lo),
-                                  Eigen::VectorXd(o.d_up));
+            return nb::make_tuple(to_numpy(o.d_eq), to_numpy(o.d_lo), to_numpy(o.d_up));
           },
           nb::arg("handle"), "(d_eq, d_lo, d_up): a kernel's ramp offsets (unweighted).")
       .def("add_torque_rate", &NativeStep::add_torque_rate, nb::arg("level"), nb::arg("weight"))
@@ -208,10 +208,10 @@ inline void bind_step(nb::module_& m) {
           "One control step (GIL released): model pass, rows, strict hierarchy, torques. "
           "forbid_malloc: in the checked module, a heap allocation inside the step is an "
           "error (elsewhere ignored).")
-      .def_prop_ro("x", [](const NativeStep& s) { return Eigen::VectorXd(s.x()); })
-      .def_prop_ro("tau", [](const NativeStep& s) { return Eigen::VectorXd(s.tau()); })
+      .def_prop_ro("x", [](const NativeStep& s) { return to_numpy(s.x()); })
+      .def_prop_ro("tau", [](const NativeStep& s) { return to_numpy(s.tau()); })
       .def_prop_ro("qp_count", [](const NativeStep& s) { return s.hierarchy().qp_count(); })
-      .def_prop_ro("residuals", [](const NativeStep& s) { return Eigen::VectorXd(s.residuals()); },
+      .def_prop_ro("residuals", [](const NativeStep& s) { return to_numpy(s.residuals()); },
                    "Unweighted residual norm of each kernel's rows at the last x (handle order).")
       .def_prop_ro("entry_count", &NativeStep::entry_count)
       .def(
@@ -224,7 +224,7 @@ inline void bind_step(nb::module_& m) {
           nb::arg("handle"),
           "(kind, stack level, built level, eq start, eq rows, ineq start, ineq rows, sqrt w).")
       .def(
-          "diagnose", [](NativeStep& s) { return Eigen::VectorXd(s.diagnose()); },
+          "diagnose", [](NativeStep& s) { return to_numpy(s.diagnose()); },
           "The full diagnostics' projected sigma_min of each kernel (handle order; NaN: no "
           "equality rows).")
       .def(
@@ -241,8 +241,8 @@ inline void bind_step(nb::module_& m) {
       .def(
           "com_state",
           [](const NativeStep& s) {
-            return nb::make_tuple(Eigen::Vector3d(s.robot().com()),
-                                  Eigen::Vector3d(s.robot().com_velocity()));
+            return nb::make_tuple(to_numpy(Eigen::Vector3d(s.robot().com())),
+                                  to_numpy(Eigen::Vector3d(s.robot().com_velocity())));
           },
           "(centre of mass (3,) [m], its velocity (3,) [m/s]) at the last step's state.")
       .def(
@@ -256,7 +256,8 @@ inline void bind_step(nb::module_& m) {
               sigma[k] = s.result(k).sigma_min;
               weak[k] = s.result(k).weak;
             }
-            return nb::make_tuple(cost, sigma, weak, Eigen::VectorXd(s.residuals()));
+            return nb::make_tuple(to_numpy(cost), to_numpy(sigma), to_numpy(weak),
+                                  to_numpy(s.residuals()));
           },
           "(cost, sigma_min, weak directions) of each built level and each kernel's "
           "residual of the last step, in one call (the feasibility report's data).")
