@@ -524,3 +524,24 @@ def test_a_lazy_report_answers_conflicts_without_making_every_status(name):
         assert any_conflict == bool(conflicts)
         seen += bool(conflicts)
     assert 0 < seen < 12
+
+
+@pytest.mark.parametrize("name", ["g1", "talos"])
+def test_error_norms_read_in_one_call_equal_each_tasks_error(name):
+    """``hqp.control.native.error_norms`` (a behavior's per-step record): the norms of the
+    errors waiting in a native step, read in one call, equal ``norm(task.error())`` of each
+    task, on the native step and after a Python step (an operational task ramping in)."""
+    from hqp.control.native import error_norms
+
+    robot, nat, _py = _pair(name, "residuals")
+    tasks = list(nat.stack.tasks)
+    for k, (t, state) in enumerate(_states(robot, nat.model, 8, seed=18)):
+        if k == 4:
+            for level, task in _operational_tasks(robot, nat):
+                nat.add_task(task, level, ramp_time=0.0)
+            tasks = list(nat.stack.tasks)
+        nat.step(state, t)
+        got = error_norms(tasks)
+        want = [np.linalg.norm(task.error()) if task.error().size else np.inf for task in tasks]
+        np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-15, err_msg=f"t={t}")
+    assert nat.native.steps >= 6

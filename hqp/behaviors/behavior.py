@@ -37,6 +37,7 @@ from hqp.behaviors.expressions import ExpressionError, Namespace
 from hqp.behaviors.factory import TaskFactory
 from hqp.behaviors.inputs import InputStream
 from hqp.behaviors.spec import BehaviorSpec, PhaseSpec
+from hqp.control.native import error_norms
 from hqp.controller import Feasibility
 from hqp.errors import BehaviorFileError
 
@@ -211,9 +212,10 @@ class Behavior:
             self.start(state, t)
             return
         record = self._errors.setdefault(self.phase.value, {})
-        for tname in self._levels:
-            e = self._error(tname)
-            if not np.isfinite(e):
+        names = list(self._levels)
+        norms = error_norms([self.tasks[n] for n in names]).tolist()
+        for tname, e in zip(names, norms):
+            if not math.isfinite(e):
                 continue
             d = record.setdefault(tname, {"min": e, "final": e})
             d["min"] = min(d["min"], e)

@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import math
 import operator
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
@@ -680,6 +680,32 @@ class _LazyStatuses:
         hit = handles[self.residuals[handles] > self.diagnostics.tolerance]
         return [mirror.status(self.diagnostics, int(h), self.residuals, self.level_sigma,
                               self.weak) for h in hit]
+
+
+def error_norms(tasks: Sequence[Any]) -> np.ndarray:
+    """Norm of each task's :meth:`~hqp.tasks.base.Task.error` (``inf`` where it is empty).
+
+    What ``np.linalg.norm(task.error())`` gives, without fetching each error: the tasks whose
+    error waits in a native step (:class:`ErrorSource`) are read in one call per step
+    (``NativeStep.error_norms``); the others through ``error()``. A behavior records every
+    active task's error at every step.
+    """
+    out = np.empty(len(tasks))
+    norms: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+    for i, task in enumerate(tasks):
+        source = task._error_source
+        if source is not None and source.controller.step_serial == source.serial:
+            mirror = source.mirror
+            handle = mirror._error_handles.get(id(task))
+            if handle is not None:
+                pair = norms.get(id(mirror))
+                if pair is None:
+                    pair = norms[id(mirror)] = mirror.step_core.error_norms()
+                out[i] = pair[1 if isinstance(task, CentroidalMomentumTask) else 0][handle]
+                continue
+        err = np.asarray(task.error(), dtype=float).ravel()
+        out[i] = math.sqrt(float(err @ err)) if err.size else math.inf
+    return out
 
 
 class ErrorSource:

@@ -7,6 +7,7 @@
 #include <nanobind/stl/tuple.h>
 #include <nanobind/stl/vector.h>
 
+#include <limits>
 #include <memory>
 #include <stdexcept>
 #include <string>
@@ -161,6 +162,39 @@ inline void bind_step(nb::module_& m) {
           },
           nb::arg("handle"),
           "(e, de/dt) of a tracking, orientation, gaze or pose kernel at the last step (e = current - goal).")
+      .def(
+          "error_norms",
+          [](NativeStep& s) {
+            const int n = s.entry_count();
+            const double nan = std::numeric_limits<double>::quiet_NaN();
+            Eigen::VectorXd e = Eigen::VectorXd::Constant(n, nan);
+            Eigen::VectorXd r = Eigen::VectorXd::Constant(n, nan);
+            for (int h = 0; h < n; ++h) {
+              switch (s.entry_kind(h)) {
+                case NativeStep::Kind::kTracking:
+                  e[h] = s.tracking(h).error().norm();
+                  r[h] = s.tracking(h).rate().norm();
+                  break;
+                case NativeStep::Kind::kOrientation:
+                  e[h] = s.orientation(h).error().norm();
+                  r[h] = 0.0;
+                  break;
+                case NativeStep::Kind::kGaze:
+                  e[h] = s.gaze(h).error().norm();
+                  r[h] = s.gaze(h).rate().norm();
+                  break;
+                case NativeStep::Kind::kPose:
+                  e[h] = s.pose(h).error().norm();
+                  r[h] = s.pose(h).rate().norm();
+                  break;
+                default:
+                  break;
+              }
+            }
+            return nb::make_tuple(to_numpy(e), to_numpy(r));
+          },
+          "(|e|, |de/dt|) of every kernel of kernel_error at the last step, in handle order "
+          "(NaN for the others).")
       .def("set_braking", &NativeStep::set_braking, nb::arg("handle"), nb::arg("braking"))
       .def("set_ramp", &NativeStep::set_ramp, nb::arg("handle"), nb::arg("keep"),
            "A kernel ramping in: its targets moved by keep (= 1 - s) times its ramp offsets.")
