@@ -458,6 +458,10 @@ def _same_values(values: dict[str, Any], previous: dict[str, Any] | None) -> boo
         return False
     for name, value in values.items():
         old = previous[name]
+        if isinstance(value, np.ndarray) and isinstance(old, np.ndarray):  # the common case
+            if value.shape != old.shape or not (value == old).all():
+                return False
+            continue
         try:
             if not np.array_equal(np.asarray(value, dtype=float), np.asarray(old, dtype=float)):
                 return False

@@ -172,6 +172,8 @@ class _Sensor:
 
 def push_force(pushes: Sequence[Push], t: float) -> np.ndarray | None:
     """Sum of the forces of the pushes active at time ``t`` ``(3,)`` [N] (``None``: none)."""
+    if not pushes:
+        return None
     force = np.zeros(3)
     for p in pushes:
         if p.t <= t < p.t + p.duration:
