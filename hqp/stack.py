@@ -708,19 +708,7 @@ class Stack:
         self._check_layout(layout, "Stack.advance")
         self._update_contacts(t)
         n = layout.n
-        for slot in layout.contacts:
-            c = self._contacts[slot.name]
-            if c.mode is ContactMode.UNLOADING:
-                self._unload_bound(c, model, t, x_prev, slot.start, n)
-        self._set_active_frames(self._active_frames())
-        for entry in self._tasks:
-            if self._dropped(entry):
-                continue
-            if entry.goal_ramp_pending:
-                entry.goal_ramp_pending = False
-                _ramp_goal(entry.task, model, entry.ramp_time, t)
-            if not self._ramping(entry, t):
-                continue
+        for entry in self.advance_native(model, layout, t, x_prev):
             rows = entry.task.rows(model, layout, dt, t)
             _check_columns(rows, n, entry.task.where())
             if entry.offsets is None or not _offsets_fit(entry.offsets, rows):
@@ -728,9 +716,11 @@ class Stack:
 
     def _unload_bound(self, c: _ContactEntry, model: RobotModel, t: float,
                       x_prev: np.ndarray | None, start: int, n: int) -> None:
-        """An unloading contact (slot at ``start`` of ``n`` variables): its normal force at
-        the start (from ``x_prev``, world normal), then its owner's ``max_normal_force``
-        along the unloading profile."""
+        """Lower an unloading contact's bound (its slot at ``start`` of ``n`` variables).
+
+        Its normal force at the start (from ``x_prev``, world normal), then its owner's
+        ``max_normal_force`` along the unloading profile.
+        """
         if c.f_start is None:
             C = np.zeros((1, n))
             C[0, start:start + 3] = model.frame_placement(c.frame).rotation[:, 2]

@@ -38,7 +38,6 @@ from hqp.behaviors.factory import TaskFactory
 from hqp.behaviors.inputs import InputStream
 from hqp.behaviors.spec import BehaviorSpec, PhaseSpec
 from hqp.control.native import error_norms
-from hqp.controller import Feasibility
 from hqp.errors import BehaviorFileError
 
 if TYPE_CHECKING:
@@ -344,7 +343,7 @@ class Behavior:
         logger.info("t=%.3f s: phase %s", t, name)
 
     def _env(self, state: RobotState, t: float, initial: Any) -> _LazyEnv:
-        """This step's expression environment; each name is computed when first read."""
+        """Return this step's expression environment (each name computed when first read)."""
         model = self.controller.model
         factory = self.factory
 
@@ -387,7 +386,7 @@ class Behavior:
         return _LazyEnv(makers)
 
     def _plan(self, t: float) -> Namespace:
-        """The planner's values at ``t``; each computed when first read if it can."""
+        """Return the planner's values at ``t`` (each computed when first read, if it can)."""
         planner = self.planner
         if planner is None:
             return Namespace({}, "plan")
@@ -498,7 +497,7 @@ class _LazyEnv(Mapping[str, Any]):
         return len(self._makers)
 
     def with_value(self, name: str, value: Any) -> ChainMap[str, Any]:
-        """This environment (its computed values shared) with ``name`` set to ``value``."""
+        """Return the environment (its computed values shared) with ``name`` set to ``value``."""
         return ChainMap({name: value}, self)
 
 

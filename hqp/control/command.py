@@ -178,8 +178,10 @@ class FeasibilityReport:
 
     @property
     def names(self) -> tuple[str, ...]:
-        """The task names, in the order of :attr:`tasks` (without making the statuses of a
-        report made from a step's raw results)."""
+        """Task names, in the order of :attr:`tasks`.
+
+        A report made from a step's raw results answers without making the statuses.
+        """
         if self._tasks is None:
             quick = getattr(self._statuses, "names", None)
             if quick is not None:

@@ -541,7 +541,7 @@ class NativeStepMirror:
         return statuses, costs, None
 
     def reported_handles(self) -> np.ndarray:
-        """Handles of the kernels with rows in the levels (those :meth:`_statuses` reports)."""
+        """Return the handles of the kernels with rows in the levels (:meth:`_statuses`')."""
         if self._reported is None:
             assert self._report_order is not None
             self._reported = np.array(
@@ -557,7 +557,7 @@ class NativeStepMirror:
 
     def status(self, diagnostics: Diagnostics, handle: int, residuals: np.ndarray,
                level_sigma: np.ndarray, weak: np.ndarray) -> TaskStatus:
-        """The ``"residuals"``-mode status of one reported kernel (as :meth:`_statuses`)."""
+        """Return the ``"residuals"``-mode status of one reported kernel (as :meth:`_statuses`)."""
         _kind, level, built_level, _e0, neq, _i0, _nin, _w = self._placements()[handle]
         sigma = float(level_sigma[built_level]) if neq else math.nan
         residual = float(residuals[handle])
@@ -670,11 +670,11 @@ class _LazyStatuses:
         return bool(np.any(r > self.diagnostics.tolerance))
 
     def names(self) -> list[str]:
-        """The names of the statuses, in their order."""
+        """Return the names of the statuses, in their order."""
         return self.mirror.reported_names()
 
     def conflicts(self) -> list[TaskStatus]:
-        """The statuses of the kernels in conflict alone (those :meth:`__call__` makes)."""
+        """Return the statuses of the kernels in conflict alone (as :meth:`__call__` makes them)."""
         mirror = self.mirror
         handles = mirror.reported_handles()
         hit = handles[self.residuals[handles] > self.diagnostics.tolerance]

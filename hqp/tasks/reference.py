@@ -27,6 +27,7 @@ over a duration, with zero velocity and acceleration at the goal.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Protocol
 
@@ -225,10 +226,21 @@ def min_jerk(s: float) -> float:
     return s * s * s * (10.0 + s * (-15.0 + 6.0 * s))
 
 
-def _frozen(sample: TrajectorySample) -> TrajectorySample:
-    """The sample with its arrays read-only (a sample returned at every call)."""
-    for array in (sample.position, sample.velocity, sample.acceleration):
-        array.setflags(write=False)
+def _held(ends: list[TrajectorySample | None], tau: float, duration: float,
+          make: Callable[[bool], TrajectorySample]) -> TrajectorySample | None:
+    """Return the sample held before (``tau <= 0``) or after (``tau >= duration``) a motion.
+
+    Made once by ``make(after)``, its arrays read-only, and kept in ``ends``; ``None`` within
+    the motion.
+    """
+    if not (tau <= 0.0 or tau >= duration):
+        return None
+    after = tau > 0.0
+    sample = ends[after]
+    if sample is None:
+        sample = ends[after] = make(after)
+        for array in (sample.position, sample.velocity, sample.acceleration):
+            array.setflags(write=False)
     return sample
 
 
@@ -331,16 +343,14 @@ class MinimumJerk:
         """Position, velocity and acceleration ``(m,)`` each at time ``t`` [s].
 
         Before the start and after the end, the same read-only sample at every call (a
-        controller holding the goal then pushes nothing down)."""
+        controller holding the goal then pushes nothing down).
+        """
         tau = float(t) - self.t0
         m = self.start.shape[0]
-        if tau <= 0.0 or tau >= self.duration:
-            end = tau > 0.0
-            cached = self._ends[end]
-            if cached is None:
-                cached = self._ends[end] = _frozen(TrajectorySample(
-                    (self.goal if end else self.start).copy(), np.zeros(m), np.zeros(m)))
-            return cached
+        held = _held(self._ends, tau, self.duration, lambda end: TrajectorySample(
+            (self.goal if end else self.start).copy(), np.zeros(m), np.zeros(m)))
+        if held is not None:
+            return held
         c = self._c
         p = c[0] + tau * (c[1] + tau * (c[2] + tau * (c[3] + tau * (c[4] + tau * c[5]))))
         v = c[1] + tau * (2 * c[2] + tau * (3 * c[3] + tau * (4 * c[4] + tau * 5 * c[5])))
@@ -405,15 +415,11 @@ class MinimumJerkRotation:
     def sample(self, t: float) -> TrajectorySample:
         """Rotation ``(3, 3)``, world angular velocity and acceleration ``(3,)`` at ``t``.
 
-        Before the start and after the end, the same read-only sample at every call."""
+        Before the start and after the end, the same read-only sample at every call.
+        """
         tau = float(t) - self.t0
-        if tau <= 0.0 or tau >= self.duration:
-            end = tau > 0.0
-            cached = self._ends[end]
-            if cached is None:
-                cached = self._ends[end] = _frozen(self._sample(tau))
-            return cached
-        return self._sample(tau)
+        held = _held(self._ends, tau, self.duration, lambda _end: self._sample(tau))
+        return self._sample(tau) if held is None else held
 
     def _sample(self, tau: float) -> TrajectorySample:
         s, ds, dds = min_jerk_profile(tau, self.duration)
@@ -446,15 +452,11 @@ class MinimumJerkPose:
     def sample(self, t: float) -> TrajectorySample:
         """Placement ``(4, 4)``, velocity and acceleration ``(6,)`` at ``t``.
 
-        Before the start and after the end, the same read-only sample at every call."""
-        tau = float(t) - self._p.t0
-        if tau <= 0.0 or tau >= self._p.duration:
-            end = tau > 0.0
-            cached = self._ends[end]
-            if cached is None:
-                cached = self._ends[end] = _frozen(self._sample(t))
-            return cached
-        return self._sample(t)
+        Before the start and after the end, the same read-only sample at every call.
+        """
+        held = _held(self._ends, float(t) - self._p.t0, self._p.duration,
+                     lambda _end: self._sample(t))
+        return self._sample(t) if held is None else held
 
     def _sample(self, t: float) -> TrajectorySample:
         p = self._p.sample(t)

@@ -214,9 +214,9 @@ class TrackingTask(Task):
 
         A sample of a bundled trajectory (``MinimumJerk``, ``MinimumJerkRotation``,
         ``MinimumJerkPose``: endpoints and timing validated when built, finite arrays, fresh
-        within the motion and one read-only sample before and after it) is not validated again once its shapes were checked by
-        :meth:`set_trajectory` (about 40 us per orientation sample); any other trajectory's
-        samples are validated at every call.
+        within the motion and one read-only sample before and after it) is not validated
+        again once its shapes were checked by :meth:`set_trajectory` (about 40 us per
+        orientation sample); any other trajectory's samples are validated at every call.
 
         Raises:
             InvalidInput: No goal set, or a trajectory sample of the wrong shape.
