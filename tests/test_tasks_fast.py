@@ -10,8 +10,9 @@ import pytest
 
 from hqp import HQPError
 from hqp.model import RobotModel
+from hqp.model.geometry import cross3
 from hqp.model.layout import ContactType, Layout
-from hqp.tasks.base import Rows, cross3
+from hqp.tasks.base import Rows
 from hqp.tasks.contact import Contact, wrench_cone_local
 from hqp.tasks.dynamics import FloatingBaseDynamics, generalized_contact_matrix, torque_map
 from hqp.tasks.orientation import jlog3_rate, jlog3_rate_times

@@ -26,6 +26,7 @@ the centre of pressure it implies in each sole's frame.
 from __future__ import annotations
 
 import logging
+import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -33,7 +34,7 @@ import numpy as np
 
 from hqp.errors import InvalidInput, check_array
 from hqp.model import RobotState
-from hqp.model.geometry import monotone_chain
+from hqp.model.geometry import cross3, monotone_chain
 from hqp.sim import convert
 
 if TYPE_CHECKING:
@@ -182,6 +183,7 @@ class Simulator:
             foot = self._body_root_foot(body)
             self._geom_role[g] = -2 if g in self._floor_geoms else (-1 if foot is None else foot)
         self._feet = tuple(robot.feet)
+        self._sole_corners: list[np.ndarray] | None = None
         self._foot_site_index = np.array(self._foot_sites, dtype=np.intp)
         self._wrench = np.zeros(6)
         self._welds = np.zeros(0, dtype=int)
@@ -364,7 +366,7 @@ class Simulator:
                 torque, force = d.cfrc_ext[b, :3], d.cfrc_ext[b, 3:]
                 c = d.subtree_com[int(m.body_rootid[b])]
                 out[i, :3] += force
-                out[i, 3:] += torque + np.cross(c - p, force)
+                out[i, 3:] += torque + cross3(c - p, force)
         return out
 
     def sole_cops(self, wrenches: np.ndarray | None = None) -> np.ndarray:
@@ -390,11 +392,12 @@ class Simulator:
 
     def sole_corners(self) -> np.ndarray:
         """World positions of the sole corners of the feet ``(nfeet, 4, 3)`` [m]."""
+        if self._sole_corners is None:  # (in each sole's frame: fixed)
+            self._sole_corners = [self.robot.contact(foot).corners() for foot in self.robot.feet]
         out = []
-        for foot, s in zip(self.robot.feet, self._foot_sites):
-            surface = self.robot.contact(foot)
+        for corners, s in zip(self._sole_corners, self._foot_sites):
             R = self.mj_data.site_xmat[s].reshape(3, 3)
-            out.append(self.mj_data.site_xpos[s] + surface.corners() @ R.T)
+            out.append(self.mj_data.site_xpos[s] + corners @ R.T)
         return np.array(out)
 
     def com(self) -> np.ndarray:
@@ -456,7 +459,7 @@ def _welded_model(robot: Robot) -> object:
 
 def _hull(points: np.ndarray) -> np.ndarray:
     """Convex hull of 2D points ``(k, 2)``, counter-clockwise (Andrew's monotone chain)."""
-    return monotone_chain(sorted(map(tuple, np.round(points, 12))))
+    return monotone_chain(sorted(map(tuple, np.round(points, 12).tolist())))
 
 
 def inside_polygon(point: np.ndarray, vertices: np.ndarray) -> float:
@@ -465,10 +468,16 @@ def inside_polygon(point: np.ndarray, vertices: np.ndarray) -> float:
     Positive inside (distance to the nearest edge line), negative outside (the largest
     violation of an edge's half-plane, a lower bound of the distance to the hull).
     """
-    hull = _hull(np.asarray(vertices, dtype=float)[:, :2])
-    if hull.shape[0] < 3:
+    hull = _hull(np.asarray(vertices, dtype=float)[:, :2]).tolist()
+    k = len(hull)
+    if k < 3:
         return float("-inf")
-    edges = np.roll(hull, -1, axis=0) - hull
-    normals = np.stack([edges[:, 1], -edges[:, 0]], axis=1)  # outward for a CCW hull
-    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
-    return float(-np.max(np.einsum("ij,ij->i", normals, np.asarray(point)[:2] - hull)))
+    px, py = (float(c) for c in np.asarray(point)[:2])
+    worst = -math.inf
+    for i in range(k):  # (a few edges: floats, not arrays)
+        x0, y0 = hull[i]
+        x1, y1 = hull[(i + 1) % k]
+        nx, ny = y1 - y0, -(x1 - x0)  # outward for a CCW hull
+        norm = math.sqrt(nx * nx + ny * ny)
+        worst = max(worst, nx / norm * (px - x0) + ny / norm * (py - y0))
+    return float(-worst)

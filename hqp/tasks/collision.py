@@ -47,8 +47,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from hqp.errors import InvalidGain, InvalidInput, check_array
+from hqp.model.geometry import cross3
 from hqp.model.world import Box, Capsule, Sphere, World
-from hqp.tasks.base import Category, Rows, Task, cross3
+from hqp.tasks.base import Category, Rows, Task
 
 if TYPE_CHECKING:
     from hqp.model import RobotModel

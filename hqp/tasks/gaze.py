@@ -9,7 +9,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from hqp.errors import InvalidInput, check_array
-from hqp.tasks.base import Category, cross3
+from hqp.model.geometry import cross3
+from hqp.tasks.base import Category
 from hqp.tasks.tracking import Gains, TaskKinematics, VectorGoalTask
 
 if TYPE_CHECKING:

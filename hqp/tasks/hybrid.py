@@ -9,8 +9,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from hqp.errors import InvalidInput, check_array
+from hqp.model.geometry import cross3
 from hqp.model.layout import ContactType
-from hqp.tasks.base import Category, Rows, cross3
+from hqp.tasks.base import Category, Rows
 from hqp.tasks.pose import PoseTask
 from hqp.tasks.tracking import TaskKinematics
 

@@ -8,7 +8,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from hqp.errors import InvalidInput, check_array
-from hqp.tasks.base import Category, Rows, Task, cross3
+from hqp.model.geometry import cross3
+from hqp.tasks.base import Category, Rows, Task
 
 if TYPE_CHECKING:
     from hqp.model import RobotModel

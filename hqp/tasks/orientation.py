@@ -8,7 +8,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 import pinocchio as pin
 
-from hqp.tasks.base import Category, cross3
+from hqp.model.geometry import cross3
+from hqp.tasks.base import Category
 from hqp.tasks.reference import MinimumJerkRotation, TrajectorySample, check_rotation
 from hqp.tasks.tracking import Gains, TaskKinematics, TrackingTask
 
