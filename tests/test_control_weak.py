@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from _sizing import sized
 
 import hqp
 from hqp import robots
@@ -128,14 +129,7 @@ def test_a_native_step_with_the_filter_allocates_nothing():
     robot, ctrl = _reaching()
     ctrl.stack.set_weak_threshold(Category.OPERATIONAL, THRESHOLD)
     mirror = NativeStepMirror(robot, ctrl, core=_ext_checked)
-    core, model = mirror.step_core, ctrl.model
-    rng = np.random.default_rng(11)
-    q = robot.q_standing.copy()
-    q[7:] += rng.normal(scale=0.003, size=model.na)
-    v = rng.normal(scale=0.01, size=model.nv)
-    for i in range(3):
-        mirror.push_goals(0.001 * i)
-        core.step(q, v, ctrl.dt)
+    core, q, v = sized(robot, ctrl, mirror, seed=11)
     for i in range(3, 15):
         mirror.push_goals(0.001 * i)
         core.step(q, v, ctrl.dt, forbid_malloc=True)  # raises on an allocation

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from _sizing import sized
 from _threads import assert_runs_beside_python
 
 from hqp import robots
@@ -227,20 +228,6 @@ def _checked_mirror(name):
     return robot, ctrl, mirror
 
 
-def _sized(robot, ctrl, mirror, seed):
-    """Three steps at a state near standing (allowed to allocate: they size everything);
-    returns ``(core, q, v)``."""
-    core, model = mirror.step_core, ctrl.model
-    rng = np.random.default_rng(seed)
-    q = robot.q_standing.copy()
-    q[7:] += rng.normal(scale=0.003, size=model.na)
-    v = rng.normal(scale=0.01, size=model.nv)
-    for i in range(3):
-        mirror.push_goals(0.001 * i)
-        core.step(q, v, ctrl.dt)
-    return core, q, v
-
-
 @pytest.mark.parametrize("name", robots.NAMES)
 def test_a_native_step_allocates_nothing_once_sized(name):
     """Eigen's run-time check over the whole step (model pass, kernels, solve, torques; the
@@ -248,7 +235,7 @@ def test_a_native_step_allocates_nothing_once_sized(name):
     the steps of a steady loop (the same active sets) make no heap allocation, with the goals
     pushed down at every step."""
     robot, ctrl, mirror = _checked_mirror(name)
-    core, q, v = _sized(robot, ctrl, mirror, seed=11)
+    core, q, v = sized(robot, ctrl, mirror, seed=11)
     for i in range(3, 20):
         mirror.push_goals(0.001 * i)
         core.step(q, v, ctrl.dt, forbid_malloc=True)  # raises on an allocation
@@ -416,7 +403,7 @@ def test_a_ramping_and_unloading_step_allocates_nothing():
     """Eigen's run-time check over steps with a task ramping in (its offsets recorded at the
     first, keep falling after) and a contact's normal-force bound lowered step by step."""
     robot, ctrl, mirror = _checked_mirror("g1")
-    core, q, v = _sized(robot, ctrl, mirror, seed=13)
+    core, q, v = sized(robot, ctrl, mirror, seed=13)
     h = mirror._handles["com"]
     contact = core.contact(mirror._contacts["left_foot"])
     x_prev = np.array(core.x)
