@@ -148,6 +148,7 @@ class Behavior:
         self._fixed_names = _FIXED_IN_PHASE if standing is not None else (
             _FIXED_IN_PHASE - {"pose"})
         self._goals_fixed: set[str] = set()
+        self._goal_plans: dict[str, list[tuple[Any, dict[str, Any], bool]]] = {}
         """Tasks of this phase whose goals read only what a phase holds fixed, already set."""
         self._levels: dict[str, int] = {}
         self._flags: dict[str, bool] = {}
@@ -408,6 +409,24 @@ class Behavior:
         err = np.asarray(self.tasks[name].error(), dtype=float).ravel()
         return math.sqrt(float(err @ err)) if err.size else math.inf
 
+    def _phase_goals(self, phase: PhaseSpec) -> list[tuple[Any, dict[str, Any], bool]]:
+        """Return each task of a phase that has goals, made once per phase.
+
+        Its spec, its goals (the task's, then the phase's) and whether they read only what
+        the phase holds fixed.
+        """
+        plan = self._goal_plans.get(phase.name)
+        if plan is None:
+            plan = []
+            for ts in phase.action.tasks:
+                goals = dict(ts.goals)
+                goals.update(phase.goals.get(ts.name, {}))
+                if goals:
+                    plan.append((ts, goals, all(expr.names <= self._fixed_names
+                                                for expr in goals.values())))
+            self._goal_plans[phase.name] = plan
+        return plan
+
     def _set_goals(self, state: RobotState, t: float,
                    base_env: _LazyEnv | None = None) -> None:
         """Evaluate and set the phase's goals.
@@ -417,13 +436,9 @@ class Behavior:
         """
         phase = self.phase_spec
         fixed = self._goals_fixed
-        for ts in phase.action.tasks:
+        for ts, goals, fixed_only in self._phase_goals(phase):
             if ts.name in fixed:
                 continue  # its goals read nothing that changed since the phase began
-            goals = dict(ts.goals)
-            goals.update(phase.goals.get(ts.name, {}))
-            if not goals:
-                continue
             if base_env is None:
                 base_env = self._env(state, t, None)
             env = base_env.with_value("initial", self._initial.get(ts.name))
@@ -435,7 +450,7 @@ class Behavior:
                     raise BehaviorFileError(
                         f"{self.spec.path}: phase {phase.name!r}, task {ts.name!r}, "
                         f"{gname}: {exc}") from None
-            if all(expr.names <= self._fixed_names for expr in goals.values()):
+            if fixed_only:
                 fixed.add(ts.name)
             if _same_values(values, self._goals_set.get(ts.name)):
                 # unchanged: setting it again would replace the trajectory of a task that is
