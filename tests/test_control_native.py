@@ -545,3 +545,35 @@ def test_error_norms_read_in_one_call_equal_each_tasks_error(name):
         want = [np.linalg.norm(task.error()) if task.error().size else np.inf for task in tasks]
         np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-15, err_msg=f"t={t}")
     assert nat.native.steps >= 6
+
+
+def test_a_ramp_recorded_by_a_python_step_continues_natively():
+    """A task added at the step of a blend event (a task removed): that step is a Python step
+    and records the ramp's offsets from the Python rows; the native steps after it take them
+    (``NativeStep.set_ramp_offsets``) and build the Python step's levels (to 1e-9)."""
+    from hqp.tasks.position import PositionTask
+
+    robot, nat, py = _pair("g1", "residuals", max_torque_rate=None)
+    states = list(_states(robot, nat.model, 60, seed=19))
+    hand = robot.hands[0]
+    ramped = 0
+    for k, (t, state) in enumerate(states):
+        if k == 20:
+            for ctrl in (nat, py):
+                task = PositionTask(ctrl.model, hand, name="hand")
+                ctrl.model.update(state.q, state.v)
+                task.set_goal(ctrl.model.frame_placement(hand).translation + [0.0, 0.0, 0.02])
+                ctrl.add_task(task, "operational", t=t, ramp_time=0.03)
+                ctrl.remove_task("angular_momentum", t=t)  # a blend event at the same step
+        before = nat.native.steps
+        a, b = nat.step(state, t), py.step(state, t)
+        if k == 20:
+            assert nat.native.steps == before  # the event's step: Python, offsets recorded
+            offsets = nat.stack._tasks[-1].offsets
+            assert offsets is not None
+        elif 20 < k < 50 and nat.native.steps == before + 1:
+            ramped += nat.stack.ramp_keep(nat.stack._tasks[-1], t) > 0.0
+            _same_levels(nat, py, f"t={t}", tol=1e-9)
+            assert nat.stack._tasks[-1].offsets is offsets  # the Python step's, pushed down
+        _same_optimum(nat, py, a, b, f"t={t}", tol=1e-5, sigma_tol=1e-6, conflict_sigma=False)
+    assert ramped >= 20
