@@ -122,6 +122,17 @@ def _same_errors(nat, py, what: str, tol: float = 1e-9) -> None:
                                    err_msg=f"{what}: {task.name}.error()")
 
 
+def _add_hand(ctrl, state, frame, offset, ramp_time, t=None):
+    """Add a position task holding ``frame`` at ``offset`` [m] from where it is at ``state``,
+    ramped in over ``ramp_time`` [s] from ``t`` (``None``: the last step's time)."""
+    from hqp.tasks.position import PositionTask
+
+    task = PositionTask(ctrl.model, frame, name="hand")
+    ctrl.model.update(state.q, state.v)
+    task.set_goal(ctrl.model.frame_placement(frame).translation + np.asarray(offset))
+    ctrl.add_task(task, "operational", t=t, ramp_time=ramp_time)
+
+
 @pytest.mark.parametrize("name", robots.NAMES)
 @pytest.mark.parametrize("diagnostics", ["full", "residuals"])
 def test_native_controller_equals_the_python_step(name, diagnostics):
@@ -177,8 +188,6 @@ def test_ramps_and_unloading_run_natively_and_other_changes_on_the_python_step()
     run on the Python step."""
     from _h5_standins import PostureStandIn
 
-    from hqp.tasks.position import PositionTask
-
     robot, nat, py = _pair("g1", "residuals", max_torque_rate=None)  # degenerate steps
     states = list(_states(robot, nat.model, 400, seed=9))
     hand = robot.hands[1]
@@ -186,10 +195,7 @@ def test_ramps_and_unloading_run_natively_and_other_changes_on_the_python_step()
     for k, (t, state) in enumerate(states):
         if k == 20:
             for ctrl in (nat, py):
-                task = PositionTask(ctrl.model, hand, name="hand")
-                ctrl.model.update(state.q, state.v)
-                task.set_goal(ctrl.model.frame_placement(hand).translation + [0.02, 0.0, 0.0])
-                ctrl.add_task(task, "operational", ramp_time=0.05)
+                _add_hand(ctrl, state, hand, [0.02, 0.0, 0.0], ramp_time=0.05)
             before = nat.native.steps
         if k == 60:
             assert nat.native.steps - before == 40  # the ramp (and its goal ramp): native
@@ -551,8 +557,6 @@ def test_a_ramp_recorded_by_a_python_step_continues_natively():
     """A task added at the step of a blend event (a task removed): that step is a Python step
     and records the ramp's offsets from the Python rows; the native steps after it take them
     (``NativeStep.set_ramp_offsets``) and build the Python step's levels (to 1e-9)."""
-    from hqp.tasks.position import PositionTask
-
     robot, nat, py = _pair("g1", "residuals", max_torque_rate=None)
     states = list(_states(robot, nat.model, 60, seed=19))
     hand = robot.hands[0]
@@ -560,10 +564,7 @@ def test_a_ramp_recorded_by_a_python_step_continues_natively():
     for k, (t, state) in enumerate(states):
         if k == 20:
             for ctrl in (nat, py):
-                task = PositionTask(ctrl.model, hand, name="hand")
-                ctrl.model.update(state.q, state.v)
-                task.set_goal(ctrl.model.frame_placement(hand).translation + [0.0, 0.0, 0.02])
-                ctrl.add_task(task, "operational", t=t, ramp_time=0.03)
+                _add_hand(ctrl, state, hand, [0.0, 0.0, 0.02], ramp_time=0.03, t=t)
                 ctrl.remove_task("angular_momentum", t=t)  # a blend event at the same step
         before = nat.native.steps
         a, b = nat.step(state, t), py.step(state, t)
