@@ -91,8 +91,9 @@ class Behavior:
         controller: The controller whose active task set the behavior writes.
         factory: Builds the tasks of the spec for the controller's robot.
         inputs: Runtime inputs (default: the spec's defaults).
-        planner: Trajectory generator providing ``plan.*`` (required when the spec
-            declares one; see :mod:`hqp.behaviors.planners`).
+        planner: Trajectory generator providing ``plan.*`` through ``output(name, t)`` and
+            ``output_names`` (required when the spec declares one; see
+            :mod:`hqp.behaviors.planners`).
         standing: Standing configuration ``(nq,)`` (``standing`` in goal expressions).
         safety_steps: Consecutive control steps a task's raw flag must hold before its
             feasibility flag changes (filters single-step flags).
@@ -148,8 +149,8 @@ class Behavior:
         self._fixed_names = _FIXED_IN_PHASE if standing is not None else (
             _FIXED_IN_PHASE - {"pose"})
         self._goals_fixed: set[str] = set()
-        self._goal_plans: dict[str, list[tuple[Any, dict[str, Any], bool]]] = {}
         """Tasks of this phase whose goals read only what a phase holds fixed, already set."""
+        self._goal_plans: dict[str, list[tuple[Any, dict[str, Any], bool]]] = {}
         self._levels: dict[str, int] = {}
         self._flags: dict[str, bool] = {}
         self._bad_steps: dict[str, int] = {}
@@ -348,8 +349,9 @@ class Behavior:
         model = self.controller.model
         factory = self.factory
 
-        def sensed() -> dict[str, Any]:
-            return dict(state.contacts or {})
+        def contact_flags() -> dict[str, bool]:
+            sensed = state.contacts or {}
+            return {c: bool(sensed.get(c, False)) for c in factory.contact_names}
 
         makers: dict[str, Callable[[], Any]] = {
             "t": lambda: float(t) - self.t0,
@@ -358,11 +360,8 @@ class Behavior:
             "com_velocity": lambda: model.com_velocity.copy(),
             "com0": lambda: self.com0,
             "feet_center": lambda: self.feet_center,
-            "contact": lambda: Namespace(
-                {c: bool(s.get(c, False)) for s in (sensed(),) for c in factory.contact_names},
-                "contact"),
-            "contacts": lambda: sum(bool(s.get(c, False)) for s in (sensed(),)
-                                    for c in factory.contact_names),
+            "contact": lambda: Namespace(contact_flags(), "contact"),
+            "contacts": lambda: sum(contact_flags().values()),
             "error": lambda: _LazyNamespace(lambda n: self._error(n), self.tasks, "error"),
             "infeasible": lambda: Namespace({n: self._flags.get(n, False) for n in self.tasks},
                                             "infeasible"),
@@ -391,10 +390,7 @@ class Behavior:
         planner = self.planner
         if planner is None:
             return Namespace({}, "plan")
-        output = getattr(planner, "output", None)
-        if output is None:  # a planner with ``outputs(t)`` only
-            return Namespace(planner.outputs(t), "plan")
-        return _LazyNamespace(lambda n: output(n, t), planner.output_names, "plan")
+        return _LazyNamespace(lambda n: planner.output(n, t), planner.output_names, "plan")
 
     def pose(self, name: str) -> np.ndarray:
         """Return the configuration ``(nq,)``: the standing one with the captured pose's joints."""
@@ -406,8 +402,7 @@ class Behavior:
 
     def _error(self, name: str) -> float:
         """Norm of a task's error at its last rows (``inf`` before its rows were built)."""
-        err = np.asarray(self.tasks[name].error(), dtype=float).ravel()
-        return math.sqrt(float(err @ err)) if err.size else math.inf
+        return float(error_norms([self.tasks[name]])[0])
 
     def _phase_goals(self, phase: PhaseSpec) -> list[tuple[Any, dict[str, Any], bool]]:
         """Return each task of a phase that has goals, made once per phase.

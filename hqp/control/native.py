@@ -556,10 +556,20 @@ class NativeStepMirror:
         return self._reported_names
 
     def status(self, diagnostics: Diagnostics, handle: int, residuals: np.ndarray,
-               level_sigma: np.ndarray, weak: np.ndarray) -> TaskStatus:
-        """Return the ``"residuals"``-mode status of one reported kernel (as :meth:`_statuses`)."""
+               level_sigma: np.ndarray, weak: np.ndarray,
+               sigmas: np.ndarray | None = None) -> TaskStatus:
+        """Return the status of one reported kernel from the step's data.
+
+        ``sigma_min``: the kernel's own (``sigmas``, ``"full"`` diagnostics) or its level's;
+        NaN for a kernel without equality rows.
+        """
         _kind, level, built_level, _e0, neq, _i0, _nin, _w = self._placements()[handle]
-        sigma = float(level_sigma[built_level]) if neq else math.nan
+        if not neq:
+            sigma = math.nan
+        elif sigmas is None:
+            sigma = float(level_sigma[built_level])
+        else:
+            sigma = float(sigmas[handle])
         residual = float(residuals[handle])
         return TaskStatus(self._names[handle], self.stack_level(level),
                           diagnostics.classify(residual, sigma, neq > 0), residual, None,
@@ -570,22 +580,11 @@ class NativeStepMirror:
                   sigmas: np.ndarray | None) -> tuple[TaskStatus, ...] | None:
         """Each kernel's status from the step's data (``None``: a conflict in full mode)."""
         out = []
-        assert self._report_order is not None
-        for handle, (_kind, level, built_level, _e0, neq, _i0, nin, _w) in self._report_order:
-            if neq + nin == 0 or built_level < 0:
-                continue
-            if not neq:
-                sigma = math.nan
-            elif sigmas is None:
-                sigma = float(level_sigma[built_level])
-            else:
-                sigma = float(sigmas[handle])
-            residual = float(residuals[handle])
-            status = diagnostics.classify(residual, sigma, neq > 0)
-            if sigmas is not None and status is Feasibility.CONFLICT:
+        for handle in self.reported_handles().tolist():
+            status = self.status(diagnostics, handle, residuals, level_sigma, weak, sigmas)
+            if sigmas is not None and status.status is Feasibility.CONFLICT:
                 return None
-            out.append(TaskStatus(self._names[handle], self.stack_level(level), status,
-                                  residual, None, sigma, int(weak[built_level])))
+            out.append(status)
         return tuple(out)
 
     def _placements(self) -> list[tuple[Any, ...]]:
@@ -678,8 +677,8 @@ class _LazyStatuses:
         mirror = self.mirror
         handles = mirror.reported_handles()
         hit = handles[self.residuals[handles] > self.diagnostics.tolerance]
-        return [mirror.status(self.diagnostics, int(h), self.residuals, self.level_sigma,
-                              self.weak) for h in hit]
+        return [mirror.status(self.diagnostics, h, self.residuals, self.level_sigma, self.weak)
+                for h in hit.tolist()]
 
 
 def error_norms(tasks: Sequence[Any]) -> np.ndarray:

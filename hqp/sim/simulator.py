@@ -183,7 +183,8 @@ class Simulator:
             foot = self._body_root_foot(body)
             self._geom_role[g] = -2 if g in self._floor_geoms else (-1 if foot is None else foot)
         self._feet = tuple(robot.feet)
-        self._sole_corners: list[np.ndarray] | None = None
+        # sole corners in each sole's frame (fixed)
+        self._sole_corners = [robot.contact(foot).corners() for foot in robot.feet]
         self._foot_site_index = np.array(self._foot_sites, dtype=np.intp)
         self._wrench = np.zeros(6)
         self._welds = np.zeros(0, dtype=int)
@@ -392,8 +393,6 @@ class Simulator:
 
     def sole_corners(self) -> np.ndarray:
         """World positions of the sole corners of the feet ``(nfeet, 4, 3)`` [m]."""
-        if self._sole_corners is None:  # (in each sole's frame: fixed)
-            self._sole_corners = [self.robot.contact(foot).corners() for foot in self.robot.feet]
         out = []
         for corners, s in zip(self._sole_corners, self._foot_sites):
             R = self.mj_data.site_xmat[s].reshape(3, 3)

@@ -24,6 +24,29 @@ namespace hqp {
 
 namespace nb = nanobind;
 
+/// Call f(e, de/dt) with the error of a kernel that tracks a goal (tracking, orientation:
+/// zero rate, gaze, pose) at the last step; false (f not called) for any other handle.
+template <typename F>
+bool visit_error(NativeStep& s, int handle, F&& f) {
+  if (handle < 0 || handle >= s.entry_count()) return false;
+  switch (s.entry_kind(handle)) {
+    case NativeStep::Kind::kTracking:
+      f(s.tracking(handle).error(), s.tracking(handle).rate());
+      return true;
+    case NativeStep::Kind::kOrientation:
+      f(s.orientation(handle).error(), Eigen::Vector3d::Zero().eval());
+      return true;
+    case NativeStep::Kind::kGaze:
+      f(s.gaze(handle).error(), s.gaze(handle).rate());
+      return true;
+    case NativeStep::Kind::kPose:
+      f(s.pose(handle).error(), s.pose(handle).rate());
+      return true;
+    default:
+      return false;
+  }
+}
+
 inline void bind_step(nb::module_& m) {
   using Frames = std::vector<std::tuple<std::string, std::string, Eigen::Matrix4d>>;
   using Slots = std::vector<std::tuple<int, int, Eigen::Index>>;
@@ -144,21 +167,12 @@ inline void bind_step(nb::module_& m) {
       .def(
           "kernel_error",
           [](NativeStep& s, int handle) {
-            const bool known = handle >= 0 && handle < s.entry_count();
-            if (known && s.entry_kind(handle) == NativeStep::Kind::kOrientation) {
-              return nb::make_tuple(to_numpy(s.orientation(handle).error()),
-                                    to_numpy(Eigen::Vector3d::Zero().eval()));
-            }
-            if (known && s.entry_kind(handle) == NativeStep::Kind::kGaze) {
-              const GazeKernel& g = s.gaze(handle);
-              return nb::make_tuple(to_numpy(g.error()), to_numpy(g.rate()));
-            }
-            if (known && s.entry_kind(handle) == NativeStep::Kind::kPose) {
-              const PoseKernel& p = s.pose(handle);
-              return nb::make_tuple(to_numpy(p.error()), to_numpy(p.rate()));
-            }
-            const VectorTracking& t = s.tracking(handle);
-            return nb::make_tuple(to_numpy(t.error()), to_numpy(t.rate()));
+            nb::object out;
+            const bool goal = visit_error(s, handle, [&](const auto& e, const auto& rate) {
+              out = nb::make_tuple(to_numpy(e), to_numpy(rate));
+            });
+            if (!goal) s.tracking(handle);  // throws: not a kernel with a goal
+            return out;
           },
           nb::arg("handle"),
           "(e, de/dt) of a tracking, orientation, gaze or pose kernel at the last step (e = current - goal).")
@@ -170,26 +184,10 @@ inline void bind_step(nb::module_& m) {
             Eigen::VectorXd e = Eigen::VectorXd::Constant(n, nan);
             Eigen::VectorXd r = Eigen::VectorXd::Constant(n, nan);
             for (int h = 0; h < n; ++h) {
-              switch (s.entry_kind(h)) {
-                case NativeStep::Kind::kTracking:
-                  e[h] = s.tracking(h).error().norm();
-                  r[h] = s.tracking(h).rate().norm();
-                  break;
-                case NativeStep::Kind::kOrientation:
-                  e[h] = s.orientation(h).error().norm();
-                  r[h] = 0.0;
-                  break;
-                case NativeStep::Kind::kGaze:
-                  e[h] = s.gaze(h).error().norm();
-                  r[h] = s.gaze(h).rate().norm();
-                  break;
-                case NativeStep::Kind::kPose:
-                  e[h] = s.pose(h).error().norm();
-                  r[h] = s.pose(h).rate().norm();
-                  break;
-                default:
-                  break;
-              }
+              visit_error(s, h, [&](const auto& error, const auto& rate) {
+                e[h] = error.norm();
+                r[h] = rate.norm();
+              });
             }
             return nb::make_tuple(to_numpy(e), to_numpy(r));
           },

@@ -191,30 +191,29 @@ void NativeStep::set_braking(int handle, const Eigen::VectorXd& braking) {
   j.B = braking;
 }
 
-const NativeStep::Entry& NativeStep::entry_at(int handle) const {
+std::size_t NativeStep::index_of(int handle) const {
   if (handle < 0 || handle >= int(entries_.size())) throw std::invalid_argument("no such handle");
-  return entries_[std::size_t(handle)];
+  return std::size_t(handle);
 }
 
 void NativeStep::set_ramp(int handle, double keep) {
-  entry_at(handle);
+  Entry& e = entries_[index_of(handle)];
   if (!(keep >= 0.0 && keep <= 1.0)) throw std::invalid_argument("ramp: keep must be in [0, 1]");
-  entries_[std::size_t(handle)].keep = keep;
+  e.keep = keep;
 }
 
 void NativeStep::record_ramp(int handle, const Eigen::Ref<const Eigen::VectorXd>& x_prev) {
-  entry_at(handle);
+  Entry& e = entries_[index_of(handle)];
   if (x_prev.size() != n_) throw std::invalid_argument("ramp: x_prev must be (n,)");
   if (!x_prev.allFinite()) throw std::invalid_argument("ramp: x_prev holds NaN or inf");
   x_ramp_ = x_prev;  // in place: sized at construction
-  entries_[std::size_t(handle)].record = true;
+  e.record = true;
 }
 
 void NativeStep::set_ramp_offsets(int handle, const Eigen::Ref<const Eigen::VectorXd>& d_eq,
                                   const Eigen::Ref<const Eigen::VectorXd>& d_lo,
                                   const Eigen::Ref<const Eigen::VectorXd>& d_up) {
-  entry_at(handle);
-  Entry& e = entries_[std::size_t(handle)];
+  Entry& e = entries_[index_of(handle)];
   if (d_eq.size() != e.neq || d_lo.size() != e.nin || d_up.size() != e.nin)
     throw std::invalid_argument("ramp offsets: one per equality row and two per inequality row");
   if (!d_eq.allFinite() || !d_lo.allFinite() || !d_up.allFinite())
@@ -226,7 +225,7 @@ void NativeStep::set_ramp_offsets(int handle, const Eigen::Ref<const Eigen::Vect
 }
 
 NativeStep::RampOffsets NativeStep::ramp_offsets(int handle) const {
-  const Entry& e = entry_at(handle);
+  const Entry& e = entries_[index_of(handle)];
   return {e.d_eq, e.d_lo, e.d_up};
 }
 
@@ -330,9 +329,8 @@ const Eigen::VectorXd& NativeStep::diagnose() {
 }
 
 NativeStep::EntryInfo NativeStep::entry(int handle) const {
-  if (handle < 0 || handle >= int(entries_.size())) throw std::invalid_argument("no such handle");
+  const Entry& e = entries_[index_of(handle)];
   if (!laid_out_) throw std::logic_error("entry rows are placed by the first step");
-  const Entry& e = entries_[std::size_t(handle)];
   return {int(e.kind), e.level, built_of_[std::size_t(e.level)], e.eq0, e.neq, e.in0, e.nin,
           e.sqrt_w};
 }

@@ -153,7 +153,8 @@ class NativeStep {
     bool record = false;  // record the ramp offsets at the next step
     Eigen::VectorXd d_eq, d_lo, d_up;  // ramp offsets (unweighted row units)
   };
-  const Entry& entry_at(int handle) const;
+  /// The index of a handle in entries_ (std::invalid_argument: no such handle).
+  std::size_t index_of(int handle) const;
   struct JointLimitEntry {
     JointLimitParams params;
     Eigen::VectorXd A, B, lb, ub;
