@@ -45,6 +45,20 @@ def test_min_jerk_profile():
     np.testing.assert_allclose(min_jerk(0.5), 0.5, atol=1e-15)
 
 
+def test_a_ramps_kept_share_stays_in_the_unit_interval():
+    """``min_jerk`` rounds above 1 just below a ramp's end (by up to 2e-15); the share of the
+    offsets a ramping task keeps, which the native step checks, stays in [0, 1]."""
+    fractions = np.linspace(0.999, 1.0, 200001)
+    assert max(min_jerk(float(f)) for f in fractions) > 1.0  # the rounding this guards
+    stack = Stack()
+
+    class Entry:  # the two fields ramp_keep reads
+        added_at, ramp_time = 0.0, 1.0
+
+    keeps = [stack.ramp_keep(Entry(), float(f)) for f in fractions]
+    assert min(keeps) >= 0.0 and max(keeps) <= 1.0
+
+
 def test_default_levels_follow_categories():
     st = Stack()
     assert st.n_levels == len(Category)
