@@ -248,7 +248,8 @@ def test_compiled_level_qp_matches_daqp():
 
 
 def test_level_qp_retry_statistics_count_each_attempt():
-    """The retry statistics count a level QP's first DAQP attempt, its success and its time."""
+    """The retry statistics count each attempt, its success, time and iterations, and each
+    failed DAQP call by its exit flag."""
     from hqp._core import _ext
 
     rng = np.random.default_rng(4)
@@ -256,17 +257,29 @@ def test_level_qp_retry_statistics_count_each_attempt():
     H = B.T @ B + 0.1 * np.eye(6)
     C = rng.standard_normal((5, 6))
     _ext.reset_qp_stats()
-    calls, ok, ns = _ext.qp_stats()
-    assert calls.shape == (31,) and not calls.any() and not ok.any() and not ns.any()
+    calls, ok, ns, iters, failures = _ext.qp_stats()
+    assert calls.shape == (32,) and not calls.any() and not ok.any() and not ns.any()
+    assert not iters.any() and failures.shape == (9,) and not failures.any()
     for _ in range(3):
         g = rng.standard_normal(6)
         _v, solved = _ext.level_qp(H, g, C, -0.2 * np.ones(5), 0.1 * np.ones(5))
         assert solved
-    calls, ok, ns = _ext.qp_stats()
-    assert calls[0] == 3 and ok[0] == 3 and ns[0] > 0
-    assert not calls[1:].any() and (ok <= calls).all()
+    calls, ok, ns, iters, failures = _ext.qp_stats()
+    assert calls[0] == 3 and ok[0] == 3 and ns[0] > 0 and iters[0] >= 3
+    assert not calls[1:].any() and (ok <= calls).all() and not failures.any()
     _ext.reset_qp_stats()
     assert not _ext.qp_stats()[0].any()
+    # an infeasible QP (x >= 1 and x <= -1): every DAQP attempt fails, each failure counted
+    # by its exit flag (DAQP's infeasibility is flag -1, index 1), ProxQP's last resort too
+    v, solved = _ext.level_qp(np.eye(1), np.zeros(1), np.ones((2, 1)),
+                              np.array([1.0, -np.inf]), np.array([np.inf, -1.0]))
+    calls, ok, ns, iters, failures = _ext.qp_stats()
+    assert not solved and not ok.any()
+    assert calls[:30].sum() == failures.sum() and failures[1] > 0
+    assert calls[30] == 1 and iters[:30].sum() > 0
+    assert calls[31] == 0  # (the primal method needs a feasible start: none given here)
+    _ext.reset_qp_stats()
+    assert not _ext.qp_stats()[4].any()
 
 
 def test_core_links_the_wheels_pinocchio():

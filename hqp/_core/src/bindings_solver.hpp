@@ -166,6 +166,33 @@ inline void bind_solver(nb::module_& m) {
       "The compiled level QP (DAQP with the hierarchy's retries): min 0.5 v'Hv + g'v, "
       "lo <= C v <= up; returns (v, converged). For tests.");
   m.def(
+      "primal_qp",
+      [](const Eigen::MatrixXd& H, const Eigen::VectorXd& g, const Eigen::MatrixXd& C,
+         const Eigen::VectorXd& lo, const Eigen::VectorXd& up, const Eigen::VectorXd& start,
+         int max_iter, bool forbid_malloc) {
+        const Index n = H.rows(), m = C.rows();
+        if (H.cols() != n || g.size() != n || C.cols() != n || lo.size() != m ||
+            up.size() != m || start.size() != n)
+          throw std::invalid_argument("primal_qp: inconsistent shapes");
+        using RowMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+        const RowMatrix Hr = H, Cr = C;
+        PrimalQP qp;
+        qp.reserve(n, m);
+        Eigen::VectorXd v = start;
+        bool ok = false;
+        const std::string error = released(forbid_malloc, "primal QP", [&] {
+          ok = qp.solve(Hr, g, Cr, lo, up, v, max_iter);
+          return std::string();
+        });
+        if (!error.empty()) throw std::runtime_error(error);
+        return nb::make_tuple(v, ok, qp.iterations());
+      },
+      nb::arg("H"), nb::arg("g"), nb::arg("C"), nb::arg("lo"), nb::arg("up"), nb::arg("start"),
+      nb::arg("max_iter"), nb::arg("forbid_malloc") = false,
+      "The primal active-set QP (PrimalQP) from a feasible start: returns (v, converged, "
+      "working-set changes). `forbid_malloc`: Eigen's allocation check around the solve (the "
+      "_ext_checked build). For tests.");
+  m.def(
       "nnls",
       [](const Eigen::MatrixXd& A, const Eigen::VectorXd& b, double res_tol, int max_outer,
          std::optional<Eigen::VectorXi> warm) {
@@ -212,18 +239,23 @@ inline void bind_solver(nb::module_& m) {
       "qp_stats",
       []() {
         const QPStats st = qp_stats();
-        const std::size_t k = QPStats::kAttempts + 1;
-        Eigen::Matrix<long long, Eigen::Dynamic, 1> calls(k), ok(k), ns(k);
+        const std::size_t k = QPStats::kSlots;
+        Eigen::Matrix<long long, Eigen::Dynamic, 1> calls(k), ok(k), ns(k), iters(k);
+        Eigen::Matrix<long long, Eigen::Dynamic, 1> failures(QPStats::kFlags);
         for (std::size_t i = 0; i < k; ++i) {
           calls[Index(i)] = st.calls[i];
           ok[Index(i)] = st.successes[i];
           ns[Index(i)] = st.nanoseconds[i];
+          iters[Index(i)] = st.iterations[i];
         }
-        return nb::make_tuple(calls, ok, ns);
+        for (int i = 0; i < QPStats::kFlags; ++i) failures[i] = st.failures[i];
+        return nb::make_tuple(calls, ok, ns, iters, failures);
       },
-      "The level QPs' retry statistics of this process: (calls, successes, nanoseconds) per "
-      "attempt, DAQP's (margin 0, 1e-9, 1e-7) x (primal_tol 1e-10, 1e-8) x (eps_prox 1e-6, "
-      "1e-4, 1e-2, 1, auto) in that nesting order, then ProxQP's.");
+      "The level QPs' retry statistics of this process: (calls, successes, nanoseconds, "
+      "iterations) per attempt, DAQP's (margin 0, 1e-9, 1e-7) x (primal_tol 1e-10, 1e-8) x "
+      "(eps_prox 1e-6, 1e-4, 1e-2, 1, auto) in that nesting order, then ProxQP's, then the "
+      "primal active-set method's (from the level's known feasible point); and the failed "
+      "DAQP calls by exit flag (index -flag; 0: a non-finite point).");
   m.def("reset_qp_stats", &reset_qp_stats, "Zero the level QPs' retry statistics.");
 #ifdef HQP_CHECK_MALLOC
   m.attr("malloc_checked") = true;

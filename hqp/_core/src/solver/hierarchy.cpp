@@ -103,6 +103,7 @@ void Slot::reserve(Index n, Index me, Index mi, Index P, Index total_in) {
   ref.reserve(n);
   g.reserve(nq);
   v.reserve(nq);
+  v0.reserve(nq);
   qlo.reserve(mi + P);
   qup.reserve(mi + P);
   gx.reserve(P);
@@ -486,7 +487,14 @@ std::string Hierarchy::solve_pass(Index n, Index user_levels, bool absorb) {
         MapV v = slot.v.vec(nq);
         // the first pass tries DAQP's cheap attempts only: where they fail, the absorbing pass
         // (with every attempt) is the remedy for thin feasible sets (issue 17)
-        ok = slot.qp.solve(H, g, Cq, qlo, qup, v, !absorb);
+        // a feasible point of the QP, where PrimalQP starts if DAQP's first attempt fails in
+        // the absorbing pass (docs/control.md):
+        // the levels above's solution (y = 0) with the level's slacks at their clamp
+        MapV v0 = slot.v0.vec(nq);
+        v0.setZero();
+        for (Index i = 0; i < mi; ++i)
+          v0(r + i) = -std::min(std::max(0.0, slot.lo_r(i)), slot.up_r(i));
+        ok = slot.qp.solve(H, g, Cq, qlo, qup, v, !absorb, v0.data());
         y = v.head(r);
         if (ws && y.allFinite()) {
           // polish: the QP point's active set, solved exactly if it verifies

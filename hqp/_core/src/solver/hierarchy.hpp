@@ -78,7 +78,7 @@ struct Slot {
   // size r, the carried rows p, the QP's r + mi)
   WorkM Ak, Ck, Gk, Z, E, H, Cq, Msig;
   WorkM dc;  // the anchor's displacement in the reduced coordinates (r,)
-  WorkM y, gx, glr, gur, ref, g, qlo, qup, v, gxl, svals;
+  WorkM y, gx, glr, gur, ref, g, qlo, qup, v, v0, gxl, svals;
   WorkI w, absorbed;
   PivotedQR fact, null_qr;
   bool has_fact = false;

@@ -33,38 +33,196 @@ constexpr int kProxMaxInner = 100;
 double bound_scale(double b) { return std::isfinite(b) ? std::max(1.0, std::abs(b)) : 1.0; }
 
 struct AtomicStats {
-  std::atomic<long long> calls[QPStats::kAttempts + 1];
-  std::atomic<long long> successes[QPStats::kAttempts + 1];
-  std::atomic<long long> nanoseconds[QPStats::kAttempts + 1];
+  std::atomic<long long> calls[QPStats::kSlots];
+  std::atomic<long long> successes[QPStats::kSlots];
+  std::atomic<long long> nanoseconds[QPStats::kSlots];
+  std::atomic<long long> iterations[QPStats::kSlots];
+  std::atomic<long long> failures[QPStats::kFlags];
 };
 AtomicStats g_stats{};
 
-void count(int attempt, bool ok, std::chrono::steady_clock::time_point t0) {
+void count(int attempt, bool ok, std::chrono::steady_clock::time_point t0, long long iterations,
+           int flag) {
   const auto ns = std::chrono::duration_cast<std::chrono::nanoseconds>(
                       std::chrono::steady_clock::now() - t0).count();
   g_stats.calls[attempt].fetch_add(1, std::memory_order_relaxed);
   if (ok) g_stats.successes[attempt].fetch_add(1, std::memory_order_relaxed);
   g_stats.nanoseconds[attempt].fetch_add(ns, std::memory_order_relaxed);
+  g_stats.iterations[attempt].fetch_add(iterations, std::memory_order_relaxed);
+  if (!ok && attempt < QPStats::kAttempts) {  // (a DAQP call's exit flag)
+    const int k = flag >= 1 ? 0 : std::min(-flag, QPStats::kFlags - 1);
+    g_stats.failures[k].fetch_add(1, std::memory_order_relaxed);
+  }
 }
 
 }  // namespace
 
 QPStats qp_stats() {
   QPStats out{};
-  for (int i = 0; i <= QPStats::kAttempts; ++i) {
+  for (int i = 0; i < QPStats::kSlots; ++i) {
     out.calls[i] = g_stats.calls[i].load(std::memory_order_relaxed);
     out.successes[i] = g_stats.successes[i].load(std::memory_order_relaxed);
     out.nanoseconds[i] = g_stats.nanoseconds[i].load(std::memory_order_relaxed);
+    out.iterations[i] = g_stats.iterations[i].load(std::memory_order_relaxed);
   }
+  for (int i = 0; i < QPStats::kFlags; ++i)
+    out.failures[i] = g_stats.failures[i].load(std::memory_order_relaxed);
   return out;
 }
 
 void reset_qp_stats() {
-  for (int i = 0; i <= QPStats::kAttempts; ++i) {
+  for (int i = 0; i < QPStats::kSlots; ++i) {
     g_stats.calls[i].store(0, std::memory_order_relaxed);
     g_stats.successes[i].store(0, std::memory_order_relaxed);
     g_stats.nanoseconds[i].store(0, std::memory_order_relaxed);
+    g_stats.iterations[i].store(0, std::memory_order_relaxed);
   }
+  for (int i = 0; i < QPStats::kFlags; ++i) g_stats.failures[i].store(0, std::memory_order_relaxed);
+}
+
+void PrimalQP::reserve(Index n, Index m) {
+  // (the working set may hold up to m rows: rows dependent on it to rounding can enter)
+  wqr_.reserve(m, n);
+  ls_.reserve(n, n);
+  cw_.reserve(m, n);
+  z_.reserve(n, n);
+  hz_.reserve(n, n);
+  hr_.reserve(n, n);
+  gr_.reserve(n);
+  u_.reserve(n);
+  res_.reserve(n);
+  p_.reserve(n);
+  grad_.reserve(n);
+  cp_.reserve(m);
+  cv_.reserve(m);
+  t_.reserve(n);
+  nu_.reserve(m);
+  rn_.reserve(m);
+  work_.reserve(m);
+  side_.reserve(m);
+}
+
+bool PrimalQP::solve(const CRowMatRef& H, const CVecRef& g, const CRowMatRef& C,
+                     const CVecRef& lo, const CVecRef& up, VecRef v, int max_iter) {
+  constexpr double kInfBound = 1e20;  // beyond it a bound is absent (DAQP's 1e30, the callers' inf)
+  constexpr double kStepTol = 1e-12;  // a step this small (relative to v) is no step
+  constexpr double kRankTol = 1e-10;  // the reduced Newton system's rank cut
+  constexpr double kDualTol = 1e-9;   // multipliers of W, relative to |H v + g|
+  const Index n = H.rows(), m = C.rows();
+  iterations_ = 0;
+  MapI side = side_.vec(m);
+  side.setZero();
+  MapI work = work_.vec(m);
+  Index k = 0;
+  MapV rn = rn_.vec(m);
+  for (Index i = 0; i < m; ++i) rn(i) = C.row(i).norm();
+  MapV grad = grad_.vec(n), p = p_.vec(n), cp = cp_.vec(m), cv = cv_.vec(m);
+  Index stalled = 0;  // working-set changes since the last step of positive length
+  for (int it = 0; it < max_iter; ++it) {
+    grad.noalias() = H * v;
+    grad += g;
+    // the null space of the working rows
+    Index rank = 0;
+    if (k) {
+      MapM Cw = cw_.mat(k, n);
+      for (Index j = 0; j < k; ++j) Cw.row(j) = C.row(work(j));
+      wqr_.compute_relative(Cw, 1e-12);
+      rank = wqr_.rank();
+    }
+    const Index nz = n - rank;
+    bool ray = false;
+    p.setZero();
+    if (nz) {
+      MapM Z = z_.mat(n, nz);
+      if (k)
+        Z = wqr_.null();
+      else
+        Z.setIdentity();
+      MapM HZ = hz_.mat(n, nz), Hr = hr_.mat(nz, nz);
+      HZ.noalias() = H * Z;
+      Hr.noalias() = Z.transpose() * HZ;
+      MapV gr = gr_.vec(nz), u = u_.vec(nz), res = res_.vec(nz);
+      gr.noalias() = Z.transpose() * grad;
+      MapV rhs = t_.vec(nz);
+      rhs = -gr;
+      ls_.solve(Hr, rhs, kRankTol, 0.0, u);
+      res.noalias() = Hr * u;
+      res += gr;
+      if (res.norm() > 1e-9 * std::max(1.0, gr.norm())) {
+        // a part of the reduced gradient out of the reduced Hessian's range: descent at
+        // zero curvature along it (bounded by a row, or the problem is unbounded)
+        ray = true;
+        u = -res;
+      }
+      p.noalias() = Z * u;
+    }
+    const double vmax = v.size() ? v.cwiseAbs().maxCoeff() : 0.0;
+    const double pmax = p.size() ? p.cwiseAbs().maxCoeff() : 0.0;
+    if (!ray && pmax <= kStepTol * std::max(1.0, vmax)) {
+      if (!k) return true;
+      // multipliers nu of C_W^T nu = -grad (nu_j = side_j mu_j, mu_j >= 0 at the optimum)
+      MapV t = t_.vec(n);
+      t = -grad;
+      wqr_.apply_qt(t);
+      MapV nu = nu_.vec(k);
+      nu.setZero();
+      wqr_.multipliers(t.head(rank), nu);
+      Index drop = -1;
+      const double tol = -kDualTol * std::max(1.0, grad.norm());
+      double worst = tol;
+      for (Index j = 0; j < k; ++j) {
+        const double mu = side(work(j)) * nu(j);
+        // the most negative multiplier; after n changes without progress, Bland's rule
+        // (the smallest row index) so that degenerate vertices cannot cycle
+        if (stalled > n ? (mu < tol && (drop < 0 || work(j) < work(drop))) : mu < worst) {
+          worst = mu;
+          drop = j;
+        }
+      }
+      if (drop < 0) return true;
+      side(work(drop)) = 0;
+      for (Index j = drop; j + 1 < k; ++j) work(j) = work(j + 1);
+      --k;
+      ++iterations_;
+      ++stalled;
+      continue;
+    }
+    // ratio test: the first row the step meets (ties: the smallest index)
+    cp.noalias() = C * p;
+    cv.noalias() = C * v;
+    const double pn = p.norm();
+    double alpha = ray ? std::numeric_limits<double>::infinity() : 1.0;
+    Index block = -1;
+    int block_side = 0;
+    for (Index i = 0; i < m; ++i) {
+      if (side(i)) continue;
+      const double eps = kStepTol * rn(i) * pn;
+      if (cp(i) > eps && up(i) < kInfBound) {
+        const double a = std::max(0.0, (up(i) - cv(i)) / cp(i));
+        if (a < alpha) {
+          alpha = a;
+          block = i;
+          block_side = 1;
+        }
+      } else if (cp(i) < -eps && lo(i) > -kInfBound) {
+        const double a = std::max(0.0, (lo(i) - cv(i)) / cp(i));
+        if (a < alpha) {
+          alpha = a;
+          block = i;
+          block_side = -1;
+        }
+      }
+    }
+    if (!std::isfinite(alpha)) return false;  // unbounded along a ray
+    v += alpha * p;
+    stalled = alpha > 0.0 ? 0 : stalled + 1;
+    if (block >= 0) {
+      side(block) = block_side;
+      work(k++) = int(block);
+      ++iterations_;
+    }
+  }
+  return false;
 }
 
 void LevelQP::reserve(Index n, Index m) {
@@ -78,6 +236,7 @@ void LevelQP::reserve(Index n, Index m) {
   bl_.reserve(m);
   lam_.reserve(std::max(m, Index(1)));
   sense_.reserve(std::size_t(m));
+  primal_.reserve(n, m);
 }
 
 bool LevelQP::daqp(int margin_index, int n_eps, VecRef v) {
@@ -127,7 +286,8 @@ bool LevelQP::daqp(int margin_index, int n_eps, VecRef v) {
       res.lam = lam.data();
       daqp_quadprog(&res, &qp, &settings);
       const bool ok = res.exitflag >= 1 && v.allFinite();
-      count((margin_index * QPStats::kTols + it) * QPStats::kEps + ie, ok, t0);
+      count((margin_index * QPStats::kTols + it) * QPStats::kEps + ie, ok, t0, res.iter,
+            res.exitflag);
       if (ok) return true;
     }
   }
@@ -162,14 +322,14 @@ bool LevelQP::proxqp(VecRef v) {
   qp.solve();
   const bool ok =
       qp.results.info.status == pq::QPSolverOutput::PROXQP_SOLVED && qp.results.x.allFinite();
-  count(QPStats::kAttempts, ok, t0);
+  count(QPStats::kProxQP, ok, t0, qp.results.info.iter, 0);
   if (!ok) return false;
   v = qp.results.x;
   return true;
 }
 
 bool LevelQP::solve(const CMatRef& H, const CVecRef& g, const CMatRef& C, const CVecRef& lo,
-                    const CVecRef& up, VecRef v, bool quick) {
+                    const CVecRef& up, VecRef v, bool quick, const double* start) {
   const int n_eps = quick ? kEpsQuick : QPStats::kEps;
   // normalise the cost: the minimiser does not change, DAQP's tolerances then mean the same
   // thing for levels of any scale
@@ -198,6 +358,19 @@ bool LevelQP::solve(const CMatRef& H, const CVecRef& g, const CMatRef& C, const 
   }
   bool ok = daqp(0, n_eps, v);
   if (ok || !has_in) return ok;
+  if (start && !quick) {  // the absorbing pass: the primal method from the feasible point
+    const auto t0 = std::chrono::steady_clock::now();
+    MapV vp = v2_.vec(n_);
+    vp = CMapV(start, n_);
+    const RowMap Hn(H_.data(), n_, n_), Cn(A_.data(), m_, n_);
+    const bool pok = primal_.solve(Hn, g_.vec(), Cn, lo_.vec(), up_.vec(), vp,
+                                   int(4 * (n_ + m_))) && vp.allFinite();
+    count(QPStats::kPrimal, pok, t0, primal_.iterations(), 0);
+    if (pok) {
+      v = vp;
+      return true;
+    }
+  }
   MapV v2 = v2_.vec(n_);
   for (int i = 0; i < QPStats::kMargins - 1; ++i) {
     if (i && v.allFinite()) break;
