@@ -34,26 +34,28 @@ struct QPStats {
 QPStats qp_stats();
 void reset_qp_stats();
 
+using CRowMatRef =
+    Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>;
+
 /// A primal active-set method for a convex QP started at a feasible point:
 ///
 ///   min 0.5 v^T H v + g^T v   s.t.  lo <= C v <= up,
 ///
-/// H symmetric positive semidefinite. The working set W holds rows at one of their bounds,
-/// linearly independent; each iteration minimises the objective on {C_W p = 0} (the
-/// minimum-norm step of the reduced Newton system through a pivoted QR, or, where the
-/// reduced gradient has a part the reduced Hessian does not reach, that part as a descent
-/// direction of zero curvature), moves as far as the first row it meets allows (ties to the
-/// smallest index) and adds that row; a step of zero length ends in the multipliers of W,
-/// the most negative dropped. Every iterate is feasible, so it never reports a feasible
-/// problem infeasible (DAQP's dual iterations do, on the hierarchy's thin feasible sets:
-/// docs/control.md). The hierarchy knows a feasible point of each level QP (the levels
-/// above's solution, the level's slacks at their clamp), which is where it starts.
+/// H symmetric positive semidefinite. The working set W holds rows at one of their bounds
+/// (a row dependent on W to rounding may enter; the pivoted QR's rank sets the null space).
+/// Each iteration minimises the objective on {C_W p = 0} (the minimum-norm step of the
+/// reduced Newton system through a pivoted QR, or, where the reduced gradient has a part
+/// the reduced Hessian does not reach, that part as a descent direction of zero curvature),
+/// moves as far as the first row it meets allows (ties to the smallest index) and adds that
+/// row; a step of zero length ends in the multipliers of W, the most negative dropped
+/// (after n changes without progress, the one of the smallest row index: Bland's rule, so
+/// that a degenerate vertex cannot cycle). Every iterate is feasible, so it never reports a
+/// feasible problem infeasible (DAQP's dual iterations do, on the hierarchy's thin feasible
+/// sets: docs/control.md). The hierarchy knows a feasible point of each level QP (the
+/// levels above's solution, the level's slacks at their clamp), which is where it starts.
 /// Returns true only where the KKT conditions hold at the returned v (the multipliers of W
 /// non-negative within 1e-9 of |H v + g|). Fixed-capacity storage: no allocation once
 /// reserved.
-using CRowMatRef =
-    Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>;
-
 class PrimalQP {
  public:
   void reserve(Index n, Index m);
