@@ -578,3 +578,26 @@ def test_a_ramp_recorded_by_a_python_step_continues_natively():
             assert nat.stack._tasks[-1].offsets is offsets  # the Python step's, pushed down
         _same_optimum(nat, py, a, b, f"t={t}", tol=1e-5, sigma_tol=1e-6, conflict_sigma=False)
     assert ramped >= 20
+
+
+def test_the_recovery_deceleration_is_mirrored_natively():
+    """g1's right wrist roll thrown toward its limit at 20 rad/s (what a torque-rate level in
+    conflict did, tests/test_sim_conflict.py): the native step's joint-limit rows are the
+    Python step's, braking at the recovery deceleration rather than the reserve."""
+    from hqp.tasks.joint_limits import JointLimits
+
+    robot, nat, py = _pair("g1", max_torque_rate=None)
+    jl = next(t for t in py.stack.tasks if isinstance(t, JointLimits))
+    model = py.model
+    wrist = model.joint_index("right_wrist_roll_joint")
+    assert jl.recovery[wrist] > 1e4
+    q = robot.q_standing.copy()
+    v = np.zeros(model.nv)
+    q[np.arange(model.nq)[model.actuated_q][wrist]] = model.q_upper[wrist] - 1.0
+    v[np.arange(model.nv)[model.actuated][wrist]] = 20.0
+    for t in (0.0, 0.001):
+        nat.step(RobotState(q, v), t)
+        py.step(RobotState(q, v), t)
+    _same_levels(nat, py, "g1 wrist at 20 rad/s")
+    lb, ub = jl.bounds(model, py.dt)
+    assert lb[wrist] == ub[wrist] == pytest.approx(-20.0**2 / 2.0, rel=0.05)  # stops at the limit

@@ -227,7 +227,8 @@ def test_wrench_cone_equals_the_python_cone():
 @pytest.mark.parametrize("name", robots.NAMES)
 def test_joint_limit_bounds_equal_the_python_bounds(name):
     """Viable bounds at states inside, at and past the limits, slow and fast, for several
-    settings (acceleration bounds on/off, reserve, velocity and approach times, margins)."""
+    settings (acceleration bounds on/off, reserve, recovery, velocity and approach times,
+    margins)."""
     from hqp.tasks.joint_limits import JointLimits
 
     robot = robots.load(name)
@@ -241,6 +242,9 @@ def test_joint_limit_bounds_equal_the_python_bounds(name):
         dict(qdd_max=30.0, braking=2.0, acceleration_bounds=False, inactive_beyond=200.0),
         dict(qdd_max=rng.uniform(5.0, 80.0, na), braking=rng.uniform(0.5, 5.0, na), reserve=2.0,
              velocity_time=0.02, approach_time=0.02),
+        dict(qdd_max=rng.uniform(5.0, 80.0, na), braking=rng.uniform(0.5, 5.0, na), reserve=2.0,
+             velocity_time=0.02, recovery=np.where(rng.random(na) < 0.5,
+                                                   rng.uniform(10.0, 3e4, na), 0.0)),
     ]
     for kwargs in settings:
         jl = JointLimits(**kwargs)
@@ -260,7 +264,8 @@ def test_joint_limit_bounds_equal_the_python_bounds(name):
                 py.q[py.actuated_q], py.v[py.actuated], lo + jl.position_margin,
                 hi - jl.position_margin, jl.velocity_scale * py.v_max, jl.max_acceleration(py),
                 jl.braking_deceleration(py), dt, jl.reserve, jl.velocity_time,
-                jl.inactive_beyond, jl.acceleration_bounds, jl.approach_time)
+                jl.inactive_beyond, jl.acceleration_bounds, jl.approach_time,
+                jl.recovery_deceleration(py))
             for a, b in ((nlb, lb), (nub, ub)):
                 np.testing.assert_array_equal(np.isinf(a), np.isinf(b))
                 f = np.isfinite(b)

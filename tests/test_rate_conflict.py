@@ -6,8 +6,10 @@ torques), joint limits (viability bounds on the accelerations), balance, operati
 posture. The contact limits let no torque change within the rate band: the rate level is in
 conflict, and the least-squares optimum of its violations spreads them over every joint, the
 right wrist roll's 0.8 N m share among them. On its 4e-4 kg m^2 that is 19556 rad/s^2: the
-joint-limit level below cannot act, and in the closed loop the wrist passes its limit by
-0.31 rad. Every solver finds the same optimum (the formulation, not a solver, does this).
+joint-limit level below cannot act, and in the closed loop the wrist passed its limit by
+0.31 rad (until session 24: the joint limits' recovery deceleration now stops it at its limit
+in the steps after; the one-step acceleration stays). Every solver finds the same optimum (the
+formulation, not a solver, does this).
 """
 
 from __future__ import annotations

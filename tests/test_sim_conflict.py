@@ -36,29 +36,33 @@ def _excursion(log, model):
     return float(max(np.max(q - model.q_upper), np.max(model.q_lower - q), 0.0))
 
 
-def _check(log, model, conflicting):
+def _check(log, model, conflicting, jump_xfail=None):
+    """The run's claims; ``jump_xfail``: a known reason the per-step torque bound may fail
+    (an xfail of that claim alone, after every other one has passed)."""
     jumps = np.abs(np.diff(log.tau, axis=0)).max(axis=1)
     assert not log.fell, log.fell_at
     assert not log.safe_mode.any(), int(log.safe_mode.sum())
     assert log.clip_count == 0
     assert "conflict" in log.status[conflicting], "the case must be a conflict"
     assert _excursion(log, model) < LIMIT_RAD
-    assert float(jumps.max()) < JUMP_NM, (float(jumps.max()), float(log.t[1:][jumps.argmax()]))
+    worst = (float(jumps.max()), float(log.t[1:][jumps.argmax()]))
+    if jump_xfail is not None and worst[0] >= JUMP_NM:
+        pytest.xfail(f"{worst}: {jump_xfail}")
+    assert worst[0] < JUMP_NM, worst
 
 
-G1_COM_RARE_FAILURE = pytest.mark.xfail(strict=False, reason=(
-    "rare, rounding-dependent (session 21, AMD EPYC Zen 4): the joint-limit level is in "
-    "conflict from 0.473 s; at 0.549 s the torque-rate level is in conflict too (once): its "
-    "least-squares spreads the violation over all 29 joints (up to 1.2 N m each), the right "
-    "wrist roll's share takes it to 4.8 N m, 19556 rad/s^2 on its 4e-4 kg m^2, and the wrist "
-    "passes its limit by 0.31 rad. The unperturbed run does so on this CPU, not on session "
-    "19's; 8 other runs (1e-6 rad of initial joint noise, 7 seeds; the standing pose passed "
-    "explicitly) stay within 2.5e-4 rad. Open in issue 17"))
+G1_COM_JUMP = (
+    "rounding-dependent (sessions 21 and 24, AMD EPYC): at 0.549 s of the unperturbed run the "
+    "torque-rate level is in conflict with the contact limits (once): the step is 5.18 N m "
+    "(4 N m of rate band and its least-squares violation; 5.98 N m in one of 10 runs with 1e-6 rad "
+    "of initial joint noise, the others 4.0-4.01), over the stated 5 N m. Its spread of the "
+    "violation also threw the right wrist roll to 20 rad/s and past its limit by 0.31 rad until "
+    "session 24's recovery deceleration (now 6e-6 rad, tests/test_tasks_joint_limits.py). Open: "
+    "issue 17, tests/test_rate_conflict.py")
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("name", [  # talos: 5.6 s of CPU (32 s in session 13)
-    pytest.param(n, marks=G1_COM_RARE_FAILURE) if n == "g1" else n for n in robots.NAMES])
+@pytest.mark.parametrize("name", robots.NAMES)  # talos: 5.6 s of CPU (32 s in session 13)
 def test_a_centre_of_mass_move_faster_than_the_support_allows(name):
     """The CoM goal 5 cm forward in 0.4 s (a min-jerk peak of 1.8 m/s^2, more than the soles'
     centre of pressure allows): the balance level in conflict."""
@@ -71,7 +75,7 @@ def test_a_centre_of_mass_move_faster_than_the_support_allows(name):
         com.move_to(ctrl.model, goal, 0.4, t)
 
     log = simulate(robot, c, 0.8, [Event(0.05, move, "CoM 5 cm forward in 0.4 s")])
-    _check(log, c.model, "com")
+    _check(log, c.model, "com", jump_xfail=G1_COM_JUMP if name == "g1" else None)
 
 
 @pytest.mark.slow

@@ -430,3 +430,83 @@ def test_the_braking_curve_is_approached_without_an_acceleration_step(arm: Robot
 def test_approach_time_is_checked() -> None:
     with pytest.raises(InvalidGain, match="approach_time"):
         JointLimits(qdd_max=10.0, approach_time=-1.0)
+
+
+def test_an_overspeed_joint_is_braked_at_its_recovery_deceleration(arm: RobotModel) -> None:
+    """``recovery``: a joint thrown far past its braking curve (g1's wrist in a conflict,
+    session 24: 20 rad/s on a 50 rad/s^2 bound) stops at its limit, braked at what stops it
+    there; a viable state's bounds are those without it, and recovery 0 or ``None`` changes
+    nothing."""
+    A_max, B, R = 50.0, 25.0, 3e4
+    plain = JointLimits(qdd_max=A_max, braking=B, reserve=2.0, velocity_time=0.02)
+    task = JointLimits(qdd_max=A_max, braking=B, reserve=2.0, velocity_time=0.02,
+                       recovery=np.array([R, R, R, R, R, 0.0]))
+    rng = np.random.default_rng(24)
+    changed = 0
+    for trial in range(200):
+        q = arm.random_configuration(rng)
+        v = rng.normal(scale=[0.3, 3.0][trial % 2], size=arm.nv)
+        arm.update(q, v)
+        lb0, ub0 = plain.bounds(arm, DT)
+        lb1, ub1 = task.bounds(arm, DT)
+        assert lb1[5] == lb0[5] and ub1[5] == ub0[5]
+        same = (lb1 == lb0) & (ub1 == ub0)
+        # only states that are not viable change: pinned to one braking value within R
+        assert np.all(same | ((lb1 == ub1) & (lb0 == ub0) & (np.abs(ub1) <= R)))
+        assert np.all(same | (np.sign(ub1) == -np.sign(v)))
+        changed += int(np.sum(~same))
+    assert changed > 0
+    # 20 rad/s at 1.2 rad from the limit (braking curve 7.7 rad/s), closed loop with the
+    # simulator's semi-implicit Euler step, taking the lower bound (the hardest braking the
+    # level allows): stopped before the limit with the recovery, far past it without.
+    for jl, stops in ((task, True), (plain, False)):
+        q, v = arm.neutral(), np.zeros(arm.nv)
+        q[0], v[0] = arm.q_upper[0] - 1.2, 20.0
+        peak = q[0]
+        for _ in range(2000):
+            arm.update(q, v)
+            lb, ub = jl.bounds(arm, DT)
+            assert lb[0] <= ub[0] + 1e-12
+            v = v + DT * np.where(np.arange(arm.nv) == 0, lb, 0.0)
+            q = q + DT * v
+            peak = max(peak, q[0])
+        assert (peak <= arm.q_upper[0] + 1e-9) == stops, peak - arm.q_upper[0]
+    with pytest.raises(InvalidGain, match="recovery"):
+        JointLimits(recovery=-1.0)
+    with pytest.raises(InvalidGain, match="recovery has 2 entries"):
+        JointLimits(qdd_max=1.0, recovery=[1.0, 2.0]).bounds(arm, DT)
+
+
+def test_the_worst_weight_estimate_against_turning_the_joint() -> None:
+    """``worst_weight=True``: the weight torque of a free side (an arm, the other leg) is its
+    largest as the joint turns about its axis. Independent check: turn the joint over a full
+    revolution on a fine grid (pinocchio's generalized gravity ``g_i`` is the weight torque of
+    its subtree) and take the largest ``|g_i|``."""
+    sample = pin.buildSampleModelHumanoid()
+    humanoid = RobotModel(sample, name="sample", torque_limits=np.full(sample.nv - 6, 200.0))
+    rng = np.random.default_rng(24)
+    model = humanoid.model
+    data = model.createData()
+    supports = ["rleg_effector_body"]
+    names = ("rarm_shoulder2_joint", "rarm_elbow_joint", "larm_shoulder1_joint",
+             "lleg_elbow_joint", "lleg_shoulder2_joint")
+    for _ in range(3):
+        q = humanoid.random_configuration(rng)
+        humanoid.update(q, np.zeros(humanoid.nv))
+        A = max_acceleration_from_torques(humanoid, margin=1.0, supports=supports,
+                                          worst_weight=True)
+        M = pin.crba(model, data, q)
+        for name in names:
+            i, j = humanoid.joint_index(name), model.getJointId(name)
+            iq, iv = model.joints[j].idx_q, model.joints[j].idx_v
+            worst = 0.0
+            for angle in np.linspace(-np.pi, np.pi, 3601):
+                qa = q.copy()
+                qa[iq] = angle
+                worst = max(worst, abs(pin.computeGeneralizedGravity(model, data, qa)[iv]))
+            expected = (humanoid.tau_max[i] - worst) / M[iv, iv]
+            assert expected > 0.0
+            np.testing.assert_allclose(A[i], expected, rtol=1e-5)
+    # never above the estimate at the pose itself
+    pose = max_acceleration_from_torques(humanoid, margin=1.0, supports=supports)
+    assert np.all(A <= pose + 1e-9)

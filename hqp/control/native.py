@@ -221,7 +221,8 @@ class NativeStepMirror:
                 model.q_upper - task.position_margin, task.velocity_scale * model.v_max,
                 task.reserve, task.velocity_time, task.inactive_beyond, task.acceleration_bounds,
                 np.asarray(task.max_acceleration(model), dtype=float),
-                np.asarray(task.braking_deceleration(model), dtype=float), task.approach_time)
+                np.asarray(task.braking_deceleration(model), dtype=float), task.approach_time,
+                np.asarray(task.recovery_deceleration(model), dtype=float))
             self._braking.append((handle, task))
         elif isinstance(task, OrientationTask):
             handle = s.add_orientation(level, w, core.OrientationTracking(
@@ -771,7 +772,8 @@ def _extractor(cls: type) -> _Extractor:
                  "approach_time", "inactive_beyond", "acceleration_bounds")
 
         def extra(t: Any) -> tuple[Any, ...]:
-            return (t.qdd_max is None,)
+            return (t.qdd_max is None,
+                    None if t.recovery is None else t.recovery.tobytes())
     elif issubclass(cls, GazeTask):
         names = ("frame",)
 

@@ -82,14 +82,21 @@ def viable_joint_limits(robot: Robot, model: RobotModel,
     ``approach_time`` (opt-in; 0.02 s is the measured choice). Why these choices (and what was
     measured against the alternatives): docs/control.md, "The standing joint limits".
     """
-    qdd_max = np.clip(max_acceleration_from_torques(model, margin=0.5), 5.0,
-                      max_joint_acceleration)
-    braking = SupportBraking(model, [robot.contact(foot).frame for foot in robot.feet],
-                             0.5 * qdd_max, margin=0.5, per_contact=False)
+    fixed_base = max_acceleration_from_torques(model, margin=0.5)
+    qdd_max = np.clip(fixed_base, 5.0, max_joint_acceleration)
+    feet = [robot.contact(foot).frame for foot in robot.feet]
+    braking = SupportBraking(model, feet, 0.5 * qdd_max, margin=0.5, per_contact=False)
+    # Recovery: a joint that moves its side alone (an arm, a wrist, the trunk) may brake an
+    # overspeed at what its torque limit gives that side beyond its weight's largest torque,
+    # and the other joints' torque limits the reaction (the fixed-base estimate, unclipped);
+    # joints braked through the soles keep the reserve.
+    alone = np.minimum(fixed_base, max_acceleration_from_torques(
+        model, margin=0.5, supports=feet, worst_weight=True))
+    recovery = np.where(alone > qdd_max, alone, 0.0)
     # Velocity bounds approached over 20 ms rather than in one step (no torque step when a
     # joint reaches its velocity limit); the braking curve over approach_time.
-    return JointLimits(qdd_max=qdd_max, braking=braking, reserve=2.0, velocity_time=0.02,
-                       approach_time=approach_time)
+    return JointLimits(qdd_max=qdd_max, braking=braking, reserve=2.0, recovery=recovery,
+                       velocity_time=0.02, approach_time=approach_time)
 
 
 def papers_joint_limits(

@@ -71,6 +71,24 @@ half of what the robot can do; a measured velocity spike at an impact then
 does not turn into a full-strength braking demand on a joint that can only be
 braked through the contacts.
 
+``recovery`` ``A_rec`` (per joint, larger than ``A_r``) is for the other
+extreme: a light joint thrown far past its braking curve. A level in conflict
+above the joint limits (the servo's torque-rate level, when the contact limits
+leave no torque change within its band) pins the torques at its least-squares
+optimum for a step, whatever the joint-limit level asks; on g1 that gave the
+right wrist roll (4e-4 kg m^2) 0.8 N m, 20 rad/s in one step, and braking at
+``A_r <= A_max = 50`` rad/s^2 let it pass its limit by 0.31 rad. With
+``A_rec``, where the bounds cross (a state that is not viable, or beyond
+``v_max``), the joint brakes at what its bound asks (the deceleration that
+stops it at the limit, or returns it under ``v_max``), up to ``A_rec``,
+instead of at ``A_r``; viable states are unaffected.
+:func:`hqp.control.presets.viable_joint_limits` gives it to the joints that
+move their side of the robot alone (arms, wrists, head, a trunk yaw), at what
+their torque limit gives that side beyond its weight's largest torque (and no
+more than the fixed-base estimate, where the other joints take the reaction):
+34117 rad/s^2 for g1's wrist roll, 0 for the legs, whose braking goes through
+the soles and keeps the reserve.
+
 A state past a position limit (after a disturbance, or a conflict with a
 higher level) is driven back: the bound toward the violated limit becomes
 ``(v_r - v) / T_v`` with the return velocity ``v_r = -min(v_max, sqrt(2 A e))``
@@ -101,7 +119,8 @@ if TYPE_CHECKING:
 
 
 def max_acceleration_from_torques(
-    model: RobotModel, margin: float = 0.5, supports: Sequence[str] | None = None
+    model: RobotModel, margin: float = 0.5, supports: Sequence[str] | None = None,
+    *, worst_weight: bool = False,
 ) -> np.ndarray:
     """Estimate, per actuated joint, an acceleration the torque limits can produce at ``model``.
 
@@ -130,6 +149,10 @@ def max_acceleration_from_torques(
         margin: Fraction of the estimate kept, in ``(0, 1]``.
         supports: Names of the frames held by the environment (``None``: the
             fixed-base model above).
+        worst_weight: With ``supports``: take for ``g_side`` the largest torque of the
+            side's weight as the joint turns about its axis, ``m |r_perp| |g_perp|``,
+            rather than its torque at ``model`` (a bound that holds in any pose of that
+            joint, e.g. the trunk bent forward).
 
     Returns:
         ``A`` ``(na,)`` [rad/s^2 or m/s^2] (``inf`` for unbounded torques).
@@ -142,7 +165,7 @@ def max_acceleration_from_torques(
     if not (0.0 < margin <= 1.0):
         raise InvalidGain(f"max_acceleration_from_torques: margin must be in (0, 1], got {margin}")
     if supports is not None:
-        return margin * _support_acceleration(model, supports)
+        return margin * _support_acceleration(model, supports, worst_weight)
     act = model.actuated
     Maa = np.abs(model.M[act, act])
     room = np.maximum(model.tau_max - np.abs(model.h[act]), 0.0)
@@ -151,8 +174,14 @@ def max_acceleration_from_torques(
     return margin * ratio.min(axis=0)
 
 
-def _support_acceleration(model: RobotModel, supports: Sequence[str]) -> np.ndarray:
-    """``(tau_max_i - |g_side|)_+ / I_side`` of the moving side of each joint (see above)."""
+def _support_acceleration(model: RobotModel, supports: Sequence[str],
+                          worst_weight: bool = False) -> np.ndarray:
+    """``(tau_max_i - |g_side|)_+ / I_side`` of the moving side of each joint (see above).
+
+    ``worst_weight``: ``g_side`` the largest torque of the side's weight as the joint turns
+    (``m |r_perp| |g_perp|``: the side's centre of mass at ``r_perp`` from the axis, gravity's
+    component normal to it), not the torque at ``model``'s configuration.
+    """
     pin_model, data = model.model, model.data
     held = {
         pin_model.frames[model.frame_id(f, "max_acceleration_from_torques")].parentJoint
@@ -185,6 +214,16 @@ def _support_acceleration(model: RobotModel, supports: Sequence[str]) -> np.ndar
         for Y in sides:
             inertia = float(S @ (Y * motion).vector)
             weight = abs(float(S @ (Y * hold).vector))
+            if worst_weight:
+                w = S[3:]
+                n = float(np.linalg.norm(w))
+                if n > 1e-12:  # revolute: the axis through w x v / |w|^2, direction w / |w|
+                    w = w / n
+                    r = Y.lever - np.cross(w, S[:3] / n)
+                    r_perp = r - w * float(w @ r)
+                    g = model.gravity_vector
+                    g_perp = g - w * float(w @ g)
+                    weight = Y.mass * float(np.linalg.norm(r_perp) * np.linalg.norm(g_perp))
             if inertia > 1e-12:
                 best = min(best, max(model.tau_max[i] - weight, 0.0) / inertia)
         out[i] = best
@@ -203,6 +242,7 @@ def _upper_bounds(
     clip: bool,
     v_time: float = 0.0,
     a_time: float = 0.0,
+    rec: np.ndarray | None = None,
 ) -> np.ndarray:
     """Upper acceleration bounds toward ``q_max`` (one-step, viability, velocity, acceleration).
 
@@ -210,8 +250,12 @@ def _upper_bounds(
     braking deceleration of the viability bound; ``cap`` ``(k,)``: the largest deceleration
     asked at a state that is not viable or past the limit (``B <= cap <= A``); ``v_time``:
     time constant of the velocity bound [s] (``dt`` when smaller); ``a_time``: time constant
-    of the approach to the braking curve [s] (0: none, the discrete viability root alone).
+    of the approach to the braking curve [s] (0: none, the discrete viability root alone);
+    ``rec`` ``(k,)``: the recovery deceleration (``>= cap``; ``None``: ``cap``), the most a
+    state that is not viable is asked to brake (module docstring).
     """
+    if rec is None:
+        rec = cap
     # One-step bound valid for the exact step and for the semi-implicit Euler step of
     # simulators (MuJoCo: q+ = q + dt v+), see the module docstring.
     room = q_max - q - dt * v
@@ -220,7 +264,7 @@ def _upper_bounds(
     via = np.full_like(q, np.inf)
     finite = np.isfinite(B) & np.isfinite(q_max)
     if np.any(finite):
-        Bf, Cf = B[finite], cap[finite]
+        Bf, Cf, Rf = B[finite], cap[finite], rec[finite]
         qf, vf, qm = q[finite], v[finite], q_max[finite]
         b = dt * (2.0 * vf + Bf * dt)
         c = vf**2 + 2.0 * Bf * (qf + dt * vf - qm)
@@ -229,7 +273,7 @@ def _upper_bounds(
         # Not viable for B: brake with what stops the joint at the limit, within [B, A].
         with np.errstate(divide="ignore", invalid="ignore"):
             needed = np.maximum(vf, 0.0) ** 2 / (2.0 * np.maximum(qm - qf, 1e-12))
-        brake = -np.minimum(Cf, np.maximum(Bf, needed))
+        brake = -np.minimum(Rf, np.maximum(Bf, needed))
         # A root below -B is the one-step return to the braking curve of a state that is not
         # viable either: brake gracefully there too.
         if a_time > 0.0:
@@ -363,6 +407,12 @@ class JointLimits(Task):
         reserve: Factor (>= 1, ``inf`` allowed) on the braking deceleration: the
             bounds ask for at most ``min(A_max, reserve * A)`` at a state that is
             not viable or past a limit (module docstring).
+        recovery: Deceleration ``A_rec`` per actuated joint ``(na,)`` or a scalar [rad/s^2]
+            (>= 0, ``inf`` allowed) at which a joint moving faster than its bounds allow
+            may be braked (module docstring): where larger than the reserve ``A_r``, a state
+            that is not viable (or beyond ``v_max``) brakes at what its bound asks, up to
+            ``A_rec``, instead of at ``A_r``. ``None`` or 0: ``A_r``. Viable states are
+            unaffected.
         margin: Fraction used by the estimate (``qdd_max=None`` only).
         supports: Frames held by the environment, for the estimate
             (``qdd_max=None`` only).
@@ -392,6 +442,7 @@ class JointLimits(Task):
         *,
         braking: np.ndarray | float | SupportBraking | None = None,
         reserve: float = np.inf,
+        recovery: np.ndarray | float | None = None,
         velocity_time: float = 0.0,
         approach_time: float = 0.0,
         margin: float = 0.5,
@@ -424,6 +475,12 @@ class JointLimits(Task):
         if np.isnan(reserve) or reserve < 1.0:
             raise InvalidGain(f"{w}: reserve must be >= 1, got {reserve}")
         self.reserve = float(reserve)
+        self.recovery: np.ndarray | None = None
+        if recovery is not None:
+            arr = check_array(np.atleast_1d(recovery), (None,), f"{w}: recovery", allow_inf=True)
+            if np.any(np.isnan(arr)) or np.any(arr < 0):
+                raise InvalidGain(f"{w}: recovery must be >= 0, got {arr}")
+            self.recovery = arr
         if not (np.isfinite(velocity_time) and velocity_time >= 0.0):
             raise InvalidGain(f"{w}: velocity_time must be finite and >= 0, got {velocity_time}")
         self.velocity_time = float(velocity_time)
@@ -485,6 +542,20 @@ class JointLimits(Task):
             )
         return np.minimum(np.broadcast_to(self.braking, (model.na,)), A)
 
+    def recovery_deceleration(self, model: RobotModel) -> np.ndarray:
+        """Return the recovery deceleration ``(na,)`` (0 where none: the reserve alone).
+
+        Raises:
+            InvalidGain: ``recovery`` of a size other than 1 or ``na``.
+
+        """
+        if self.recovery is None:
+            return np.zeros(model.na)
+        if self.recovery.size not in (1, model.na):
+            raise InvalidGain(f"{self.where()}: recovery has {self.recovery.size} entries, "
+                              f"robot has {model.na} joints")
+        return np.broadcast_to(self.recovery, (model.na,)).astype(float)
+
     def set_active_contacts(self, frames: Sequence[str]) -> None:
         """Record the frames of the active contacts (called by the stack at every build)."""
         self._active_frames = tuple(frames)
@@ -518,13 +589,17 @@ class JointLimits(Task):
         B = self.braking_deceleration(model)
         clip = self.acceleration_bounds
         cap = np.minimum(A, self.reserve * B)
+        rec = np.maximum(cap, self.recovery_deceleration(model))
         T_v = self.velocity_time
         T_a = self.approach_time
-        ub = _upper_bounds(q, v, q_hi, v_max, A, B, cap, dt, clip, T_v, T_a)
-        lb = -_upper_bounds(-q, -v, -q_lo, v_max, A, B, cap, dt, clip, T_v, T_a)
+        ub = _upper_bounds(q, v, q_hi, v_max, A, B, cap, dt, clip, T_v, T_a, rec)
+        lb = -_upper_bounds(-q, -v, -q_lo, v_max, A, B, cap, dt, clip, T_v, T_a, rec)
         crossed = lb > ub
         if np.any(crossed):
             brake = np.where(v >= 0.0, -cap, cap)
+            # With a recovery deceleration: the braking the crossed side asks, within it.
+            brake = np.where(rec > cap, np.where(v >= 0.0, np.maximum(ub, -rec),
+                                                 np.minimum(lb, rec)), brake)
             brake = np.where(np.isfinite(brake), brake, np.where(v >= 0.0, ub, lb))
             # Past a position limit, the return toward the range wins (module docstring).
             brake = np.where(q > q_hi, ub, np.where(q < q_lo, lb, brake))

@@ -83,15 +83,18 @@ inline void bind_step(nb::module_& m) {
           [](NativeStep& s, int level, double weight, const Eigen::VectorXd& q_lower,
              const Eigen::VectorXd& q_upper, const Eigen::VectorXd& v_max, double reserve,
              double velocity_time, double inactive_beyond, bool acceleration_bounds,
-             const Eigen::VectorXd& A, const Eigen::VectorXd& B, double approach_time) {
-            JointLimitParams p{q_lower, q_upper, v_max, reserve, velocity_time, inactive_beyond,
-                               acceleration_bounds, approach_time};
+             const Eigen::VectorXd& A, const Eigen::VectorXd& B, double approach_time,
+             const Eigen::VectorXd& recovery) {
+            if (recovery.size() != 0 && recovery.size() != A.size())
+              throw std::invalid_argument("add_joint_limits: recovery has the wrong size");
+            JointLimitParams p{q_lower, q_upper, v_max,         reserve,      velocity_time,
+                               inactive_beyond, acceleration_bounds, approach_time, recovery};
             return s.add_joint_limits(level, weight, p, A, B);
           },
           nb::arg("level"), nb::arg("weight"), nb::arg("q_lower"), nb::arg("q_upper"),
           nb::arg("v_max"), nb::arg("reserve"), nb::arg("velocity_time"),
           nb::arg("inactive_beyond"), nb::arg("acceleration_bounds"), nb::arg("A"), nb::arg("B"),
-          nb::arg("approach_time") = 0.0)
+          nb::arg("approach_time") = 0.0, nb::arg("recovery") = Eigen::VectorXd())
       .def("add_tracking", &NativeStep::add_tracking, nb::arg("level"), nb::arg("weight"),
            nb::arg("kernel"))
       .def("add_orientation", &NativeStep::add_orientation, nb::arg("level"), nb::arg("weight"),

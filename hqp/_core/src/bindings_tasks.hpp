@@ -227,13 +227,16 @@ inline void bind_tasks(nb::module_& m) {
       [](const Eigen::VectorXd& q, const Eigen::VectorXd& v, const Eigen::VectorXd& q_lower,
          const Eigen::VectorXd& q_upper, const Eigen::VectorXd& v_max, const Eigen::VectorXd& A,
          const Eigen::VectorXd& B, double dt, double reserve, double velocity_time,
-         double inactive_beyond, bool acceleration_bounds, double approach_time) {
+         double inactive_beyond, bool acceleration_bounds, double approach_time,
+         const Eigen::VectorXd& recovery) {
         const Eigen::Index k = q.size();
         for (const Eigen::VectorXd* a : {&v, &q_lower, &q_upper, &v_max, &A, &B}) {
           if (a->size() != k) throw std::invalid_argument("joint_limit_bounds: sizes differ");
         }
-        JointLimitParams p{q_lower, q_upper, v_max, reserve, velocity_time, inactive_beyond,
-                           acceleration_bounds, approach_time};
+        if (recovery.size() != 0 && recovery.size() != k)
+          throw std::invalid_argument("joint_limit_bounds: sizes differ");
+        JointLimitParams p{q_lower, q_upper, v_max,         reserve,      velocity_time,
+                           inactive_beyond, acceleration_bounds, approach_time, recovery};
         Eigen::VectorXd lb(k), ub(k);
         joint_limit_bounds(p, q, v, A, B, dt, lb, ub);
         return nb::make_tuple(lb, ub);
@@ -241,6 +244,7 @@ inline void bind_tasks(nb::module_& m) {
       nb::arg("q"), nb::arg("v"), nb::arg("q_lower"), nb::arg("q_upper"), nb::arg("v_max"),
       nb::arg("A"), nb::arg("B"), nb::arg("dt"), nb::arg("reserve"), nb::arg("velocity_time"),
       nb::arg("inactive_beyond"), nb::arg("acceleration_bounds"), nb::arg("approach_time") = 0.0,
+      nb::arg("recovery") = Eigen::VectorXd(),
       "Viable joint-limit acceleration bounds (lb, ub) (hqp.tasks.joint_limits.JointLimits).");
   m.def(
       "contact_dynamics",

@@ -21,7 +21,8 @@ double approach(double q, double v, double q_max, double B, double cap, double T
 
 /// The upper bound toward q_max of one joint (hqp.tasks.joint_limits._upper_bounds).
 double upper_bound(double q, double v, double q_max, double v_max, double A, double B,
-                   double cap, double dt, bool clip, double v_time, double a_time) {
+                   double cap, double rec, double dt, bool clip, double v_time,
+                   double a_time) {
   const double room = q_max - q - dt * v;
   const double pos = std::min(2.0 * room, room) / (dt * dt);
   const double T = std::max(dt, v_time);
@@ -36,7 +37,7 @@ double upper_bound(double q, double v, double q_max, double v_max, double A, dou
     if (a_time > 0.0) root = std::min(root, approach(q, v, q_max, B, cap, std::max(dt, a_time)));
     const double vp = std::max(v, 0.0);
     const double needed = vp * vp / (2.0 * std::max(q_max - q, 1e-12));
-    const double brake = -std::min(cap, std::max(B, needed));
+    const double brake = -std::min(rec, std::max(B, needed));
     via = disc >= 0.0 ? std::max(root, brake) : brake;
   }
   double bound = std::min(std::min(pos, vel), via);
@@ -58,13 +59,16 @@ void joint_limit_bounds(const JointLimitParams& p, const Eigen::Ref<const Eigen:
   const bool clip = p.acceleration_bounds;
   for (Eigen::Index i = 0; i < q.size(); ++i) {
     const double cap = std::min(A(i), p.reserve * B(i));
-    double u = upper_bound(q(i), v(i), p.q_upper(i), p.v_max(i), A(i), B(i), cap, dt, clip,
+    const double rec = p.recovery.size() > 0 ? std::max(cap, p.recovery(i)) : cap;
+    double u = upper_bound(q(i), v(i), p.q_upper(i), p.v_max(i), A(i), B(i), cap, rec, dt, clip,
                            p.velocity_time, p.approach_time);
-    double l = -upper_bound(-q(i), -v(i), -p.q_lower(i), p.v_max(i), A(i), B(i), cap, dt, clip,
-                            p.velocity_time, p.approach_time);
+    double l = -upper_bound(-q(i), -v(i), -p.q_lower(i), p.v_max(i), A(i), B(i), cap, rec, dt,
+                            clip, p.velocity_time, p.approach_time);
     if (l > u) {
       // crossed at a state that is not viable: brake (past a limit: the return wins)
       double brake = v(i) >= 0.0 ? -cap : cap;
+      // with a recovery deceleration: the braking the crossed side asks, within it
+      if (rec > cap) brake = v(i) >= 0.0 ? std::max(u, -rec) : std::min(l, rec);
       if (!std::isfinite(brake)) brake = v(i) >= 0.0 ? u : l;
       if (q(i) > p.q_upper(i))
         brake = u;

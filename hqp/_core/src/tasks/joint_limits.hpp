@@ -16,6 +16,7 @@ struct JointLimitParams {
   double inactive_beyond = 1e4;      ///< bounds beyond this are dropped (infinite)
   bool acceleration_bounds = true;   ///< |qdd| <= A as well
   double approach_time = 0.0;        ///< time constant of the approach to the braking curve
+  Eigen::VectorXd recovery;          ///< recovery deceleration (na,), or empty: the cap alone
 };
 
 /// lb <= qdd_a <= ub (each (na,)) at the actuated joints' (q, v), for the maximum
