@@ -78,8 +78,11 @@ def viable_joint_limits(robot: Robot, model: RobotModel,
     The bound on ``|qdd|`` is the fixed-base torque estimate clipped to
     ``[5, max_joint_acceleration]`` rad/s^2; the braking assumption is the smaller of half of
     it and what the supports allow (:class:`~hqp.tasks.joint_limits.SupportBraking`,
-    all-or-none); velocity bounds are approached over 20 ms, the braking curve over
-    ``approach_time`` (opt-in; 0.02 s is the measured choice). Why these choices (and what was
+    all-or-none); a joint that moves its side of the robot alone gets a recovery deceleration
+    (what its torque limit gives that side beyond its weight's largest torque, at most the
+    fixed-base estimate) for states thrown past its braking curve; velocity bounds are
+    approached over 20 ms, the braking curve over ``approach_time`` (opt-in; 0.02 s is the
+    measured choice). Why these choices (and what was
     measured against the alternatives): docs/control.md, "The standing joint limits".
     """
     fixed_base = max_acceleration_from_torques(model, margin=0.5)

@@ -87,8 +87,8 @@ inline void bind_step(nb::module_& m) {
              const Eigen::VectorXd& recovery) {
             if (recovery.size() != 0 && recovery.size() != A.size())
               throw std::invalid_argument("add_joint_limits: recovery has the wrong size");
-            JointLimitParams p{q_lower, q_upper, v_max,         reserve,      velocity_time,
-                               inactive_beyond, acceleration_bounds, approach_time, recovery};
+            JointLimitParams p{q_lower, q_upper, v_max, reserve, velocity_time, inactive_beyond,
+                               acceleration_bounds, approach_time, recovery};
             return s.add_joint_limits(level, weight, p, A, B);
           },
           nb::arg("level"), nb::arg("weight"), nb::arg("q_lower"), nb::arg("q_upper"),

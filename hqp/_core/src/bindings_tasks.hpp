@@ -235,8 +235,8 @@ inline void bind_tasks(nb::module_& m) {
         }
         if (recovery.size() != 0 && recovery.size() != k)
           throw std::invalid_argument("joint_limit_bounds: sizes differ");
-        JointLimitParams p{q_lower, q_upper, v_max,         reserve,      velocity_time,
-                           inactive_beyond, acceleration_bounds, approach_time, recovery};
+        JointLimitParams p{q_lower, q_upper, v_max, reserve, velocity_time, inactive_beyond,
+                           acceleration_bounds, approach_time, recovery};
         Eigen::VectorXd lb(k), ub(k);
         joint_limit_bounds(p, q, v, A, B, dt, lb, ub);
         return nb::make_tuple(lb, ub);
