@@ -67,3 +67,23 @@ def test_a_rate_level_in_conflict_leaves_the_joints_within_reach_of_their_bounds
     levels = _levels()
     sol = HierarchicalSolver("native", "basis").solve(levels)
     assert np.abs(sol.x[6:6 + 29]).max() < 1e3  # the bounds here are about +-50 rad/s^2
+
+
+def test_the_rate_band_held_would_need_the_soles_to_tip() -> None:
+    """Why the rate level yields at that step: holding every torque within 4 N m of the last
+    (the rate level above the contact limits) leaves the contact wrenches far outside their
+    cones: one sole's centre-of-pressure row by 6.0 N m and its yaw-torque rows by up to
+    5.7 N m, where the 10 % sole margin of the contact limits would give 1.2 N m (0.1 x its
+    0.085 m half length x its 139 N). Relaxing that margin would not hold the band: the
+    conflict is the soles', not a solver's."""
+    levels = _levels()
+    held = HierarchicalSolver("quadprog", "basis").solve([levels[0], levels[2], levels[1]])
+    assert held.costs[1] < 1e-9  # the band can be held...
+    limits = levels[1]
+    v = limits.C @ held.x
+    excess = np.maximum(v - limits.upper, limits.lower - v)
+    torque_rows = np.abs(limits.C[:, :35]).sum(axis=1) > 0  # tau rows first, then the soles
+    assert np.all(excess[torque_rows] < 1e-9)
+    sole = excess[29:46]  # the first sole's 17 wrench-cone rows
+    # rows 5-8: centre of pressure, 9-16: yaw torque (ContactLimits' local_limits order)
+    assert sole[5:9].max() > 5.0 and sole[9:17].max() > 5.0
