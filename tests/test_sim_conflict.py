@@ -36,9 +36,15 @@ def _excursion(log, model):
     return float(max(np.max(q - model.q_upper), np.max(model.q_lower - q), 0.0))
 
 
+JUMP_SEEN_NM = 6.5
+"""Above the largest per-step change measured where ``jump_xfail`` applies (5.98 N m): a step
+beyond it is a regression, not the known case."""
+
+
 def _check(log, model, conflicting, jump_xfail=None):
     """The run's claims; ``jump_xfail``: a known reason the per-step torque bound may fail
-    (an xfail of that claim alone, after every other one has passed)."""
+    (an xfail of that claim alone, after every other one has passed, and only up to
+    :data:`JUMP_SEEN_NM`)."""
     jumps = np.abs(np.diff(log.tau, axis=0)).max(axis=1)
     assert not log.fell, log.fell_at
     assert not log.safe_mode.any(), int(log.safe_mode.sum())
@@ -46,7 +52,7 @@ def _check(log, model, conflicting, jump_xfail=None):
     assert "conflict" in log.status[conflicting], "the case must be a conflict"
     assert _excursion(log, model) < LIMIT_RAD
     worst = (float(jumps.max()), float(log.t[1:][jumps.argmax()]))
-    if jump_xfail is not None and worst[0] >= JUMP_NM:
+    if jump_xfail is not None and JUMP_NM <= worst[0] < JUMP_SEEN_NM:
         pytest.xfail(f"{worst}: {jump_xfail}")
     assert worst[0] < JUMP_NM, worst
 

@@ -238,11 +238,11 @@ def _upper_bounds(
     A: np.ndarray,
     B: np.ndarray,
     cap: np.ndarray,
+    rec: np.ndarray,
     dt: float,
     clip: bool,
     v_time: float = 0.0,
     a_time: float = 0.0,
-    rec: np.ndarray | None = None,
 ) -> np.ndarray:
     """Upper acceleration bounds toward ``q_max`` (one-step, viability, velocity, acceleration).
 
@@ -251,11 +251,9 @@ def _upper_bounds(
     asked at a state that is not viable or past the limit (``B <= cap <= A``); ``v_time``:
     time constant of the velocity bound [s] (``dt`` when smaller); ``a_time``: time constant
     of the approach to the braking curve [s] (0: none, the discrete viability root alone);
-    ``rec`` ``(k,)``: the recovery deceleration (``>= cap``; ``None``: ``cap``), the most a
+    ``rec`` ``(k,)``: the recovery deceleration (``>= cap``; ``cap`` for none), the most a
     state that is not viable is asked to brake (module docstring).
     """
-    if rec is None:
-        rec = cap
     # One-step bound valid for the exact step and for the semi-implicit Euler step of
     # simulators (MuJoCo: q+ = q + dt v+), see the module docstring.
     room = q_max - q - dt * v
@@ -592,8 +590,8 @@ class JointLimits(Task):
         rec = np.maximum(cap, self.recovery_deceleration(model))
         T_v = self.velocity_time
         T_a = self.approach_time
-        ub = _upper_bounds(q, v, q_hi, v_max, A, B, cap, dt, clip, T_v, T_a, rec)
-        lb = -_upper_bounds(-q, -v, -q_lo, v_max, A, B, cap, dt, clip, T_v, T_a, rec)
+        ub = _upper_bounds(q, v, q_hi, v_max, A, B, cap, rec, dt, clip, T_v, T_a)
+        lb = -_upper_bounds(-q, -v, -q_lo, v_max, A, B, cap, rec, dt, clip, T_v, T_a)
         crossed = lb > ub
         if np.any(crossed):
             brake = np.where(v >= 0.0, -cap, cap)
