@@ -30,7 +30,7 @@ from hqp.behaviors import setup
 from hqp.behaviors.loader import load_behavior
 from hqp.behaviors.planners import Footstep, Support, WalkPlanner
 
-ROBOTS = ("paper-humanoid", "g1")
+ROBOTS = ("paper-humanoid", "g1", "talos")
 
 
 def _standing(name: str) -> tuple[Any, Any]:

@@ -424,6 +424,7 @@ class WalkPlanner:
         self._states = np.zeros((0, 3, 2))
         self._jerks = np.zeros((0, 2))
         self._z0 = 0.0
+        self._z1 = 0.0
         self._heading = np.eye(3)
         self._last: tuple[float, dict[str, Any]] | None = None
 
