@@ -16,6 +16,8 @@ Protocol: one JSON object per line on stdin, one JSON reply per line on stdout.
   torques (zero when the solve fails), the accelerations, and the step's own wall-clock and
   CPU time (state, kinematics, references, solve, torques), measured here so that the pipe is
   not counted;
+- ``{"op": "placements", "frames": [...]}`` -> ``{"ok": true, "T": {frame: 4 x 4}, "com":
+  [x, y, z]}``: PlaCo's frame placements and centre of mass at the last state it was given;
 - ``{"op": "quit"}`` -> ``{"ok": true}``, then the worker exits.
 
 A request that fails gets ``{"ok": false, "error": "<type>: <message>"}``.
@@ -217,6 +219,14 @@ def serve(inp: TextIO, out: TextIO) -> None:
                 w1, c1 = time.perf_counter(), time.process_time()
                 _reply(out, {"ok": True, "tau": tau.tolist(), "qdd": qdd.tolist(),
                              "success": ok, "wall_s": w1 - w0, "cpu_s": c1 - c0})
+                continue
+            if op == "placements":
+                if dynamics is None:
+                    raise RuntimeError("placements before setup")
+                robot = dynamics.robot
+                _reply(out, {"ok": True, "com": robot.com_world().tolist(),
+                             "T": {f: robot.get_T_world_frame(f).tolist()
+                                   for f in msg["frames"]}})
                 continue
             raise ValueError(f"unknown op {op!r}")
         except Exception as exc:  # noqa: BLE001 - every failure goes back to the caller

@@ -299,7 +299,7 @@ def _measure(robot_name: str, names: Sequence[str], steppers: dict[str, _Stepper
     fns = {n: st for n, st in steppers.items() if n not in slow}
     settings = dict(warmup=2, batch=2, min_samples=4, max_seconds=3.0) if quick else dict(
         warmup=2 * len(sts), batch=len(sts), min_samples=80, max_seconds=45.0)
-    timings = interleaved(fns, **settings)  # type: ignore[arg-type]
+    timings = interleaved(fns, **settings) if fns else {}  # type: ignore[arg-type]
     round_trip: dict[str, Samples] = {}
     for name, st in steppers.items():
         if st.peer is not None and name in timings:
