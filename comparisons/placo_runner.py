@@ -229,12 +229,12 @@ class PlacoController:
         self.config = config or PlacoConfig()
         setup, self.hard_levels = hierarchy_setup(robot, self.model, hierarchy, self.config)
         self._tracked: list[tuple[Any, str]] = []  # (hqp task, kind) sent at every step
-        self._posture: list[tuple[Any, np.ndarray]] = []  # (hqp task, last goal sent)
+        self._posture: dict[str, tuple[Any, np.ndarray]] = {}  # name: (hqp task, goal sent)
         for _, tasks in hierarchy.levels:
             for task in tasks:
                 kind = _kind(task)
                 if kind == "joints":
-                    self._posture.append((task, np.asarray(task.goal_at(0.0).position)))
+                    self._posture[task.name] = (task, np.array(task.goal_at(0.0).position))
                 else:
                     self._tracked.append((task, kind))
         self.worker = start("placo", WORKER, python)
@@ -257,7 +257,8 @@ class PlacoController:
         Centre of gravity and position tasks: the hqp task's own reference acceleration
         (eq. 27-28, both saturations), PlaCo's ``ddtarget_world`` with ``kp = kd = 0``;
         orientation tasks: the goal's rotation and angular velocity (PlaCo's PD, without
-        saturation). The model is updated at ``state`` first.
+        saturation); posture tasks: their goal, when it changed (``screwgun`` switches it to
+        the work pose). The model is updated at ``state`` first.
         """
         self.model.update(state.q, state.v)
         refs: dict[str, Any] = {}
@@ -277,6 +278,11 @@ class PlacoController:
             acc[: x.size] = task.reference(x, xd, sample.position, sample.velocity,
                                            sample.acceleration)
             refs[task.name] = {"acceleration": acc.tolist()}
+        for name, (task, sent) in self._posture.items():
+            goal = np.asarray(task.goal_at(t).position)
+            if not np.array_equal(goal, sent):
+                refs[name] = {"joints": dict(zip(getattr(task, "joints"), goal.tolist()))}
+                self._posture[name] = (task, goal.copy())
         return refs
 
     def step(self, state: Any, t: float) -> Command:

@@ -237,3 +237,33 @@ def test_placo_controller_meets_its_hard_task_with_hqps_reference():
     J = pin.jacobianCenterOfMass(pm, pm.createData(), q)
     np.testing.assert_allclose(J[:2] @ cmd.qdd, acc, atol=1e-6)
     assert cmd.timings["placo"] > 0.0 and cmd.timings["total"] >= cmd.timings["placo"]
+
+
+@live
+def test_a_posture_goal_change_reaches_placo_once():
+    """``screwgun`` switches the posture's goal mid-run: PlaCo's joints task follows it (sent
+    once, at the step it changed) and PlaCo's accelerations change with it."""
+    from comparisons import get_scenario
+    from comparisons.placo_runner import PlacoController
+    from hqp.model import RobotState
+
+    scenario = get_scenario("hand-reach")
+    spec = next(s for s in scenario.specs(["placo"]) if s.hierarchy == "cog-first")
+    robot, model, hierarchy, _ = scenario.build("paper-humanoid", spec)
+    posture = hierarchy.levels[-1][1][0]
+    controller = PlacoController(robot, hierarchy)
+    try:
+        state = RobotState(robot.q_standing.copy(), np.zeros(model.nv), 0.0)
+        assert posture.name not in controller.references(state, 0.0)
+        before = controller.step(state, 0.0).qdd
+        goal = np.array(posture.goal_at(0.0).position) + 0.2
+        posture.set_goal(goal)
+        refs = controller.references(state, 0.0)
+        assert list(refs[posture.name]["joints"].values()) == pytest.approx(goal.tolist())
+        assert posture.name not in controller.references(state, 0.0)  # sent once
+        posture.set_goal(goal - 0.1)
+        after = controller.step(state, 0.0)
+    finally:
+        controller.close()
+    assert not after.safe_mode
+    assert np.abs(after.qdd - before).max() > 1e-6
