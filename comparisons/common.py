@@ -325,6 +325,31 @@ def run_controller(
                     "activation zones")
             if hierarchy.collision:
                 note += "; obstacle-avoidance rows are not enforced"
+    own: dict[str, Any] = {}
+    try:
+        log, wrenches, cops, margins = _closed_loop(robot, controller, duration, events,
+                                                    progress, wrap, contacts, model.tau_max)
+        if peer is not None:
+            log.step_time = np.asarray(peer.step_time[: log.t.size])
+            own = peer.metrics()
+    finally:
+        if peer is not None:
+            peer.close()
+    nfeet = len(robot.feet)
+    half = np.array([[robot.contact(f).half_length, robot.contact(f).half_width]
+                     for f in robot.feet])
+    margin = (None if any(m is None for m in margins)
+              else np.array(margins, dtype=float))
+    support = Support(np.array(wrenches).reshape(-1, nfeet, 6),
+                      np.array(cops).reshape(-1, nfeet, 2), half, margin)
+    return ControllerRun(log, note, support, own)
+
+
+def _closed_loop(robot: Robot, controller: Any, duration: float, events: Sequence[Any],
+                 progress: Callable[[str], None], wrap: Callable[[Any], Any] | None,
+                 contacts: str, tau_max: np.ndarray
+                 ) -> tuple[Log, list[np.ndarray], list[np.ndarray], list[float | None]]:
+    """Simulate a controller (wrapped first) in MuJoCo; the log and the support per step."""
     if wrap is not None:
         controller = wrap(controller)
     last = [-1.0]
@@ -334,7 +359,7 @@ def run_controller(
             last[0] = t
             progress(f"  t = {t:.1f} s")
 
-    sim = Simulator(robot, dt=DT, contacts=contacts, torque_limits=model.tau_max)
+    sim = Simulator(robot, dt=DT, contacts=contacts, torque_limits=tau_max)
     wrenches: list[np.ndarray] = []
     cops: list[np.ndarray] = []
     margins: list[float | None] = []
@@ -346,21 +371,5 @@ def run_controller(
         margins.append(commanded_margin(robot, s.sole_corners(),
                                         getattr(command, "wrenches", None), s.weight))
 
-    try:
-        log = simulate(robot, controller, duration, events, sim=sim, progress=tick,
-                       on_step=record)
-    finally:
-        if peer is not None:
-            peer.close()
-    own: dict[str, Any] = {}
-    if peer is not None:
-        log.step_time = np.asarray(peer.step_time[: log.t.size])
-        own = peer.metrics()
-    nfeet = len(robot.feet)
-    half = np.array([[robot.contact(f).half_length, robot.contact(f).half_width]
-                     for f in robot.feet])
-    margin = (None if any(m is None for m in margins)
-              else np.array(margins, dtype=float))
-    support = Support(np.array(wrenches).reshape(-1, nfeet, 6),
-                      np.array(cops).reshape(-1, nfeet, 2), half, margin)
-    return ControllerRun(log, note, support, own)
+    log = simulate(robot, controller, duration, events, sim=sim, progress=tick, on_step=record)
+    return log, wrenches, cops, margins
