@@ -51,7 +51,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--controllers", nargs="+", metavar="C",
         help=f"controllers to run (default: all the scenario supports; {', '.join(CONTROLLERS)})",
     )
-    parser.add_argument("--robot", help="robot name (default: the scenario's)")
+    parser.add_argument("--robot", help="robot name or robot TOML file (default: the "
+                        "scenario's; the paper scenarios run on paper-humanoid)")
     parser.add_argument(
         "--duration", type=float, metavar="S", help="simulated duration of each run [s]"
     )
