@@ -20,6 +20,7 @@ from typing import Any, TextIO
 
 from comparisons import CONTROLLERS, SCENARIOS, get_scenario
 from comparisons.report import format_table, write_plots
+from hqp import robots
 from hqp.app.console import fallback_note, stdout_to_stderr
 from hqp.errors import InvalidInput
 from hqp.sim.simulator import CONTACT_MODES
@@ -99,6 +100,8 @@ def _run(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     single_blas_thread()
     names: Sequence[str] = SCENARIOS if args.all else [args.name]
     scenarios = [get_scenario(n) for n in names]  # unknown names fail before any run
+    if args.robot is not None:
+        robots.check(args.robot)  # a missing robot file too; a scenario names its robots
 
     def progress(message: str) -> None:
         print(message, file=err, flush=True)

@@ -344,8 +344,8 @@ def _source_model(urdf: Path, name: str, opts: _Options) -> pin.Model:
             missing["torque_limits"].append(joint)
     for label, bad in missing.items():
         if bad:
-            what = {"position_limits": "a position range (lower < upper)",
-                    "velocity_limits": "a velocity limit", "torque_limits": "an effort limit"}
+            what = {"position_limits": "position range (lower < upper)",
+                    "velocity_limits": "velocity limit", "torque_limits": "effort limit"}
             raise RobotDescriptionError(
                 f"robot {name!r}: URDF {urdf.name} gives no {what[label]} for joint"
                 f"{'s' if len(bad) > 1 else ''} {', '.join(bad)}; give {label} = "
