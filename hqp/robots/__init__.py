@@ -47,7 +47,9 @@ def check(source: str | Path) -> None:
             raise RobotDescriptionError(f"{source}: no such robot file")
         return
     if source not in NAMES:
-        raise UnknownName("robot", str(source), [*NAMES, "<path/to/robot.toml>"])
+        error = UnknownName("robot", str(source), NAMES)
+        error.args = (f"{error.args[0]}, or a robot TOML file (path/to/robot.toml)",)
+        raise error
 
 
 def load(source: str | Path) -> Robot:
