@@ -329,22 +329,7 @@ def test_g1_keeps_its_feet_before_an_unreachable_goal() -> None:
     assert np.linalg.norm(hand - np.array([0.55, -0.22, 1.10])) > 0.05
 
 
-def _walk_planner_available() -> bool:
-    from hqp.behaviors.loader import load_behavior
-
-    planner = load_behavior("walk").planner
-    if planner is not None and planner.type == "placo_walk":
-        try:
-            import placo  # noqa: F401
-        except ImportError:
-            return False
-    return True
-
-
 @pytest.mark.slow
-@pytest.mark.skipif(not _walk_planner_available(),
-                    reason="the walk behavior's planner (PlaCo's, until hqp's own replaces it) "
-                           "is not installed")
 @pytest.mark.parametrize("name", sorted(NEW))
 def test_new_humanoid_walks_4_steps(name: str) -> None:
     from hqp.app.run import run_behavior
