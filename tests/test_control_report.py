@@ -15,7 +15,6 @@ import pytest
 import hqp
 from hqp.control.command import Feasibility
 
-pytest.importorskip("hqp._core._ext")
 
 
 def _closed_loop(name: str, push: float, steps: int = 500, every: int = 7):

@@ -137,6 +137,7 @@ class NativeStepMirror:
             self._report_settings = (feasibility.tolerance, feasibility.singular_tolerance,
                                      feasibility.full)
             self.step_core.set_report(*self._report_settings)
+        self.step_core.set_work_budget(int(getattr(controller, "work_budget", None) or 0))
         for task in stack.tasks:
             level = self._native_level(stack.level_of_task(task.name))
             self._add(core, task, level, self._contacts)
@@ -828,7 +829,8 @@ class NativeEngine:
         stack = controller.stack
         rate = None if controller.max_torque_rate is None else int(controller._rate_after)
         return tuple((level, _parameters(t)) for level, t in stack.task_levels()) + (
-            ("torque_rate", rate), ("weak_thresholds", stack.weak_thresholds))
+            ("torque_rate", rate), ("weak_thresholds", stack.weak_thresholds),
+            ("work_budget", getattr(controller, "work_budget", None)))
 
     def ready(self, controller: Any, t: float) -> NativeStepMirror | None:
         """Return the mirror to run this step, or ``None`` when the Python step must run it."""

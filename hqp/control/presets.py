@@ -18,7 +18,7 @@ import numpy as np
 
 from hqp.control.nullspace.law import EIG_TOL
 from hqp.control.nullspace.resolver import NullSpaceController
-from hqp.control.servo import MAX_TORQUE_RATE, Controller, WholeBodyController
+from hqp.control.servo import MAX_TORQUE_RATE, WORK_BUDGET, Controller, WholeBodyController
 from hqp.errors import InvalidGain, InvalidInput, UnknownName
 from hqp.model.layout import ContactType
 from hqp.stack import Stack
@@ -396,6 +396,7 @@ def standing_controller(
     diagnostics: str = "full",
     native: bool | None = None,
     max_torque_rate: float | None = MAX_TORQUE_RATE,
+    work_budget: int | None = WORK_BUDGET,
     **gains: float,
 ) -> WholeBodyController:
     """Build a :class:`~hqp.control.servo.WholeBodyController` standing on both feet.
@@ -413,6 +414,8 @@ def standing_controller(
         max_torque_rate: The servo's torque-rate level [N m/s] (see ``WholeBodyController``;
             default :data:`~hqp.control.servo.MAX_TORQUE_RATE`, 4 N m per 1 ms step;
             ``None``: none).
+        work_budget: Work budget of the native step's solve (see ``WholeBodyController``;
+            default :data:`~hqp.control.servo.WORK_BUDGET`; ``None``: unbounded).
         **gains: Keyword arguments of :func:`standing_stack`.
 
     """
@@ -420,7 +423,7 @@ def standing_controller(
     stack, contacts = standing_stack(robot, model, **gains)
     return WholeBodyController(model, contacts, stack, dt=dt, backend=backend,
                                algorithm=algorithm, diagnostics=diagnostics, native=native,
-                               max_torque_rate=max_torque_rate)
+                               max_torque_rate=max_torque_rate, work_budget=work_budget)
 
 
 def standing_nullspace_controller(

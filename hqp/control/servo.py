@@ -59,6 +59,14 @@ if TYPE_CHECKING:
     from hqp.solver import HierarchicalSolver, Solution
     from hqp.tasks.base import Task
 
+WORK_BUDGET = 1000
+"""Default work budget of the native step's solve (``WholeBodyController(work_budget=...)``),
+in the level QPs' work units: a DAQP iteration 1, a primal active-set iteration 25. Where a
+step's solve spends it, the levels already solved stay exact, each level whose QP it cuts keeps
+the best feasible point reached, and the report's notes say which levels were cut. A measured
+choice (docs/control.md, "The work budget"): the smallest of those tried that leaves the pushed
+closed loops where the unbounded solve leaves them."""
+
 MAX_TORQUE_RATE = 4000.0
 """Measured choice of the bound on the rate of the hierarchy's torques [N m/s]: 4 N m per 1 ms
 step, under the 5 N m per step the closed-loop conflict tests hold (a torque an actuator with
@@ -203,6 +211,10 @@ class WholeBodyController(Controller):
             ``(na,)`` (module docstring; HQP resolvers only; :data:`MAX_TORQUE_RATE` is the
             measured choice); ``None`` (default): no torque-rate level. The native step
             mirrors it (a torque-rate kernel at a level of its own).
+        work_budget: Work budget of the native step's solve, in the level QPs' work units
+            (:data:`WORK_BUDGET`); ``None`` or 0: unbounded. It bounds the worst step: where
+            it is spent, the levels already solved stay exact and the level whose QP it cuts
+            keeps the best feasible point reached (the report's notes name it).
 
     Raises:
         InvalidInput: Bad period, tolerance or diagnostics mode; a contact frame not in the
@@ -229,6 +241,7 @@ class WholeBodyController(Controller):
         resolver: Resolver | None = None,
         native: bool | None = None,
         max_torque_rate: float | np.ndarray | None = None,
+        work_budget: int | None = WORK_BUDGET,
     ) -> None:
         if not np.isfinite(dt) or dt <= 0.0:
             raise InvalidInput(f"WholeBodyController: dt must be positive, got {dt}")
@@ -265,6 +278,10 @@ class WholeBodyController(Controller):
         self.feasibility = Diagnostics(tolerance, singular_tolerance, diagnostics)
         self.diagnostics = diagnostics
         self.damping = float(damping)
+        if work_budget is not None and (int(work_budget) != work_budget or work_budget < 0):
+            raise InvalidInput(f"WholeBodyController: work_budget must be a whole number >= 0 "
+                               f"or None, got {work_budget}")
+        self.work_budget = None if not work_budget else int(work_budget)
         self.max_torque_rate: np.ndarray | None = None
         if max_torque_rate is not None:
             rate = np.broadcast_to(np.asarray(max_torque_rate, dtype=float), (robot_model.na,))
@@ -495,6 +512,7 @@ class WholeBodyController(Controller):
             self._native_failure = str(exc).splitlines()[0] if str(exc) else "failed"
             return None
         mirror.collect_ramps()
+        cut = mirror.step_core.cut_levels() if self.work_budget else ()
         mirror.record_errors(ErrorSource(mirror, self, self.step_serial))
         self.model.provide(mirror.quantity)  # the core's pass at this state, for readers
         t3 = clock()
@@ -502,6 +520,10 @@ class WholeBodyController(Controller):
         self._rate_ref = tau.copy()
         self._was_safe = False
         notes: list[str] = []
+        if cut:
+            notes.append(f"work budget ({self.work_budget} units) spent: the QP of level(s) "
+                         f"{', '.join(str(mirror.stack_level(k)) for k in cut)} stopped at its "
+                         "best feasible point; the levels above are exact")
         tau, suspended = self._blend(tau, t, notes)  # a decaying-offset blend (if one runs)
         tau = self._clip(tau, notes)
         qdd, wrenches = self._split(x)

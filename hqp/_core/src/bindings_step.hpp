@@ -258,6 +258,22 @@ inline void bind_step(nb::module_& m) {
           },
           nb::arg("handle"),
           "(kind, stack level, built level, eq start, eq rows, ineq start, ineq rows, sqrt w).")
+      .def("set_work_budget", &NativeStep::set_work_budget, nb::arg("units"),
+           "The work budget of each step's solve, in the level QPs' work units (a DAQP "
+           "iteration 1, a primal active-set iteration 25); 0: unbounded. Where it runs "
+           "out, the levels solved stay exact and a level whose QP it cuts keeps the best "
+           "feasible point reached (cut_levels).")
+      .def_prop_ro("work_used", [](const NativeStep& s) { return s.hierarchy().work_used(); },
+                   "Work units the last step's solve used (0 without a budget).")
+      .def(
+          "cut_levels",
+          [](const NativeStep& s) {
+            std::vector<int> out;
+            for (int k = 0; k < s.level_count(); ++k)
+              if (s.result(k).cut) out.push_back(s.level_index(k));
+            return out;
+          },
+          "Stack levels whose QP the last step's work budget cut.")
       .def("set_report", &NativeStep::set_report, nb::arg("tolerance"),
            nb::arg("singular_tolerance"), nb::arg("full"),
            "Compute the feasibility report in every step from now on (the statuses, "

@@ -153,6 +153,8 @@ class NativeStep {
   /// Per kernel: the stack level a conflict yields to; -1: infeasible on its own (no level
   /// above blocks it); -2: not a conflict (or a report without yields_to).
   const IVec& yields() const { return report_.yields(); }
+  /// The work budget of each step's solve (Settings::work_budget; 0: unbounded).
+  void set_work_budget(long long units) { hierarchy_.set_work_budget(units); }
   /// The solver's report of built level k (cost, sigma_min, per-row states).
   const LevelResult& result(int k) const { return hierarchy_.results()[std::size_t(k)]; }
 

@@ -184,12 +184,15 @@ bool Hierarchy::warm_slot(Slot& slot) {
 std::string Hierarchy::solve(Index n, Index user_levels) {
   // a level whose QP fails (a thin feasible set) sends the solve to a second pass that
   // absorbs the rows active over the optimal sets above (BasisAlgorithm.solve)
+  const long long budget = settings_.work_budget;
+  budget_left_ = budget > 0 ? budget : std::numeric_limits<long long>::max();
   std::string err = solve_pass(n, user_levels, false);
   if (!err.empty()) {
     const int first = qp_count_;
     err = solve_pass(n, user_levels, true);
     qp_count_ += first;
   }
+  work_used_ = budget > 0 ? budget - budget_left_ : 0;
   if (err.empty() && settings_.warm_start) {
     anchor_ = x_;
     has_anchor_ = true;
@@ -250,7 +253,10 @@ std::string Hierarchy::solve_pass(Index n, Index user_levels, bool absorb) {
     slot.projected = false;
     slot.has_fact = false;
     slot.Zb = Z;
-    if (k < user_levels) results_[k].weak = 0;
+    if (k < user_levels) {
+      results_[k].weak = 0;
+      results_[k].cut = false;
+    }
     if (r == 0 || me + mi == 0) {
       if (k < user_levels) results_[k].seconds = seconds_since(t0);
       off += mi;
@@ -494,7 +500,9 @@ std::string Hierarchy::solve_pass(Index n, Index user_levels, bool absorb) {
         v0.setZero();
         for (Index i = 0; i < mi; ++i)
           v0(r + i) = -std::min(std::max(0.0, slot.lo_r(i)), slot.up_r(i));
+        slot.qp.set_budget(settings_.work_budget > 0 ? &budget_left_ : nullptr);
         ok = slot.qp.solve(H, g, Cq, qlo, qup, v, !absorb, v0.data());
+        if (k < user_levels && slot.qp.cut()) results_[k].cut = true;
         y = v.head(r);
         if (ws && y.allFinite()) {
           // polish: the QP point's active set, solved exactly if it verifies

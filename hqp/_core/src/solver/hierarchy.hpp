@@ -32,6 +32,11 @@ struct Settings {
   double rank_tol = 1e-9;
   bool warm_start = true;
   bool compute_sigma = true;
+  /// Work budget of one solve (both passes), in the level QPs' work units (LevelQP: DAQP
+  /// iterations, PrimalQP iterations weighted); 0: unbounded (the contract solver's default).
+  /// Where it runs out, the levels solved stay exact and each level whose QP it cuts keeps
+  /// the best feasible point reached (LevelResult::cut).
+  long long work_budget = 0;
 };
 
 /// One level's rows, held in the solver's workspace (column-major copies of the inputs).
@@ -58,6 +63,7 @@ struct LevelResult {
   VectorXd violation_in;  ///< signed distance of C x outside [lo, up] (m_in,)
   IVec state;             ///< per inequality row: 0 inside, 1 active, 2 active and violated
   int weak = 0;           ///< weak directions whose target was filtered
+  bool cut = false;       ///< the level's QP stopped on the work budget (Settings)
   double seconds = 0.0;
 };
 
@@ -110,6 +116,10 @@ class Hierarchy {
   /// Solve the levels; returns an empty string on success, else the failure's message.
   std::string solve(Index n, Index user_levels);
   void reset();
+  /// Set the work budget of the next solves (Settings::work_budget; 0: unbounded).
+  void set_work_budget(long long budget) { settings_.work_budget = budget < 0 ? 0 : budget; }
+  /// Work units the last solve used.
+  long long work_used() const { return work_used_; }
 
   const VectorXd& x() const { return x_; }
   const std::vector<LevelResult>& results() const { return results_; }
@@ -141,6 +151,8 @@ class Hierarchy {
   std::vector<Index> shapes_;  // n, then (me, mi) per level, of the last solve
   int qp_count_ = 0;
   int anchored_ = 0;
+  long long budget_left_ = 0;
+  long long work_used_ = 0;
   double final_seconds_ = 0.0;
   Index n_ = -1;
 };

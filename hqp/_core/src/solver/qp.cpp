@@ -235,6 +235,7 @@ void LevelQP::reserve(Index n, Index m) {
   bu_.reserve(m);
   bl_.reserve(m);
   lam_.reserve(std::max(m, Index(1)));
+  keep_.reserve(n);
   sense_.reserve(std::size_t(m));
   primal_.reserve(n, m);
 }
@@ -259,6 +260,11 @@ bool LevelQP::daqp(int margin_index, int n_eps, VecRef v) {
   for (int it = 0; it < QPStats::kTols; ++it) {
     const double primal_tol = kPrimalTol[it];
     for (int ie = 0; ie < n_eps; ++ie) {
+      if (spent()) {
+        cut_ = true;
+        v.setConstant(std::numeric_limits<double>::quiet_NaN());
+        return false;
+      }
       const double eps_prox = kEpsProx[ie];
       const auto t0 = std::chrono::steady_clock::now();
       DAQPProblem qp;
@@ -278,13 +284,14 @@ bool LevelQP::daqp(int margin_index, int n_eps, VecRef v) {
       daqp_default_settings(&settings);
       settings.primal_tol = primal_tol;
       settings.dual_tol = 1e-12;
-      settings.iter_limit = 2000;
+      settings.iter_limit = budget_ ? int(std::min<long long>(2000, *budget_)) : 2000;
       settings.eta_prox = 1e-12;
       settings.eps_prox = eps_prox;
       DAQPResult res;
       res.x = v.data();
       res.lam = lam.data();
       daqp_quadprog(&res, &qp, &settings);
+      if (budget_) *budget_ -= res.iter;
       const bool ok = res.exitflag >= 1 && v.allFinite();
       count((margin_index * QPStats::kTols + it) * QPStats::kEps + ie, ok, t0, res.iter,
             res.exitflag);
@@ -350,7 +357,8 @@ bool LevelQP::solve(const CMatRef& H, const CVecRef& g, const CMatRef& C, const 
   lo_.vec(m_) = lo;
   up_.vec(m_) = up;
   const bool has_in = C.rows() > 0;
-  if (has_in && sticky_ >= 0) {
+  cut_ = false;
+  if (has_in && sticky_ >= 0 && !spent()) {
     const int i = sticky_;
     if (--sticky_left_ <= 0) sticky_ = -1;
     if (daqp(1 + i, n_eps, v)) return true;
@@ -358,22 +366,39 @@ bool LevelQP::solve(const CMatRef& H, const CVecRef& g, const CMatRef& C, const 
   }
   bool ok = daqp(0, n_eps, v);
   if (ok || !has_in) return ok;
+  bool primal_point = false;  // v2_ holds a feasible PrimalQP iterate (not optimal)
   if (start && !quick) {  // the absorbing pass: the primal method from the feasible point
     const auto t0 = std::chrono::steady_clock::now();
     MapV vp = v2_.vec(n_);
     vp = CMapV(start, n_);
     const RowMap Hn(H_.data(), n_, n_), Cn(A_.data(), m_, n_);
+    long long max_iter = 4 * (n_ + m_);
+    if (budget_) max_iter = std::min(max_iter, std::max(0LL, *budget_ / kPrimalWork));
     const bool pok = primal_.solve(Hn, g_.vec(), Cn, lo_.vec(), up_.vec(), vp,
-                                   int(4 * (n_ + m_))) && vp.allFinite();
+                                   int(max_iter)) && vp.allFinite();
     count(QPStats::kPrimal, pok, t0, primal_.iterations(), 0);
+    if (budget_) *budget_ -= kPrimalWork * primal_.iterations();
     if (pok) {
       v = vp;
       return true;
     }
+    if (spent() && vp.allFinite()) {  // the best point the budget reached: feasible
+      v = vp;
+      cut_ = true;
+      return true;
+    }
+    primal_point = vp.allFinite();
+    if (primal_point) {  // kept aside: the answer if every later attempt fails
+      keep_.vec(n_) = vp;
+    }
+  }
+  if (spent()) {
+    cut_ = true;
+    return false;
   }
   MapV v2 = v2_.vec(n_);
   for (int i = 0; i < QPStats::kMargins - 1; ++i) {
-    if (i && v.allFinite()) break;
+    if ((i && v.allFinite()) || spent()) break;
     if (daqp(1 + i, n_eps, v2)) {
       sticky_ = i;
       sticky_left_ = kRelaxSticky;
@@ -382,8 +407,14 @@ bool LevelQP::solve(const CMatRef& H, const CVecRef& g, const CMatRef& C, const 
     }
     if (!v.allFinite()) v = v2;
   }
-  if (!quick && !v.allFinite() && proxqp(v2)) {  // (no last resort in a quick solve)
+  if (spent()) cut_ = true;
+  if (!quick && !spent() && !v.allFinite() && proxqp(v2)) {  // (no last resort in a quick solve)
     v = v2;
+    return true;
+  }
+  if (primal_point && !v.allFinite()) {  // every attempt failed: the feasible primal iterate
+    v = keep_.vec();
+    cut_ = true;
     return true;
   }
   return false;

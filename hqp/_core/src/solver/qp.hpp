@@ -89,18 +89,33 @@ class LevelQP {
              const CVecRef& up, VecRef v, bool quick = false, const double* start = nullptr);
   /// Forget the relaxation memory.
   void reset() { sticky_ = -1; }
+  /// The work budget the next solves draw on (nullptr: unbounded): a DAQP iteration costs
+  /// 1, a PrimalQP iteration kPrimalWork. Where it runs out, no further attempt starts;
+  /// with a feasible start (the absorbing pass), the PrimalQP iterate reached (feasible, its
+  /// cost no higher than the start's) is the answer and cut() is true.
+  void set_budget(long long* budget) { budget_ = budget; }
+  /// Whether the last solve stopped on the work budget, or returned a feasible PrimalQP
+  /// iterate short of optimality because every attempt failed.
+  bool cut() const { return cut_; }
+  /// Work units of one PrimalQP iteration (a pivoted QR of the working rows against a DAQP
+  /// iteration's rank-one update of its factor).
+  static constexpr long long kPrimalWork = 25;
 
  private:
   using RowMap = Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>;
   bool daqp(int margin_index, int n_eps, VecRef v);
   bool proxqp(VecRef v);
   // fixed-capacity storage (linalg.hpp's Work); H_ and A_ hold row-major matrices
-  WorkM H_, A_, g_, lo_, up_, bu_, bl_, lam_, v2_;
+  WorkM H_, A_, g_, lo_, up_, bu_, bl_, lam_, v2_, keep_;
   PrimalQP primal_;
   Index n_ = 0, m_ = 0;
   std::vector<int> sense_;
   int sticky_ = -1;    // index of the relaxation that last succeeded on this slot
   int sticky_left_ = 0;
+  long long* budget_ = nullptr;
+  bool cut_ = false;
+  /// Whether the budget is spent (never, without one).
+  bool spent() const { return budget_ != nullptr && *budget_ <= 0; }
 };
 
 }  // namespace hqp

@@ -153,7 +153,13 @@ int daqp_prox(DAQPWorkspace *work){
          * ----------------------------------------------------------------*/
         work->u = work->x;
         work->outer_iter++;
-        exitflag = daqp_ldp(work);
+        {   // hqp: the inner solve gets what is left of the iteration limit (the total, not
+            // each inner solve, is bounded by iter_limit)
+            const int limit = work->settings->iter_limit;
+            work->settings->iter_limit = limit - total_iter;
+            exitflag = daqp_ldp(work);
+            work->settings->iter_limit = limit;
+        }
 
         total_iter += work->iterations;
         if(adaptive && eps < eps_max && total_iter < work->settings->iter_limit &&
@@ -259,6 +265,7 @@ int daqp_prox(DAQPWorkspace *work){
 
     // Finalize
     if(total_iter >= work->settings->iter_limit) exitflag = DAQP_EXIT_ITERLIMIT;
+    work->iterations = total_iter; // hqp: the result's iterations are the total
     // Refine x (skipped for short solves)
     if(exitflag > 0 && total_iter > DAQP_REFINE_MIN_ITER) daqp_refine_primal(work);
     if(is_lp){
