@@ -15,7 +15,6 @@ import hqp
 from hqp.errors import InvalidInput
 from hqp.solver import HierarchicalSolver
 
-
 PRIMAL_WORK = 25  # a primal active-set iteration's units (LevelQP::kPrimalWork)
 
 

@@ -16,7 +16,6 @@ import hqp
 from hqp.control.command import Feasibility
 
 
-
 def _closed_loop(name: str, push: float, steps: int = 500, every: int = 7):
     """Yield (step, controller, command) every ``every`` steps of a pushed standing loop."""
     robot = hqp.robots.load(name)
