@@ -194,6 +194,10 @@ class StateMap:
         tau = check_array(tau, (self.nv - 6,), "StateMap.ctrl_from_tau: tau")
         return tau[self._act_v - 6] / self._act_gear
 
+    def write_ctrl(self, tau: np.ndarray, ctrl: np.ndarray) -> None:
+        """Write :meth:`ctrl_from_tau` of checked torques ``(nv - 6,)`` into ``ctrl`` ``(nu,)``."""
+        np.divide(tau[self._act_v - 6], self._act_gear, out=ctrl)
+
     def tau_from_ctrl(self, ctrl: np.ndarray) -> np.ndarray:
         """Actuated-joint torques ``(nv - 6,)`` (pinocchio order) of MuJoCo motors' ``ctrl``."""
         tau = np.zeros(self.nv - 6)

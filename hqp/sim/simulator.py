@@ -201,6 +201,8 @@ class Simulator:
                             * np.linalg.norm(self.mj_model.opt.gravity))
         """Weight of the robot [N]."""
         self._mujoco = mujoco
+        self._ctrl = self.mj_data.ctrl  # (MuJoCo's array, written in place)
+        self._clip_above = self.torque_limits * (1.0 + 1e-9)
         self.reset()
 
     # -- state ------------------------------------------------------------------------------
@@ -229,6 +231,7 @@ class Simulator:
             self._weld_feet()
         self.clip_count = 0
         self.last_clipped = 0
+        self._pushing = False  # (mj_resetData cleared the applied forces)
 
     def _weld_feet(self) -> None:
         """Hold each welded foot at its current pose (the weld's relative pose, anchor at 0).
@@ -294,26 +297,36 @@ class Simulator:
             InvalidInput: Wrong shape or non-finite torques.
 
         """
-        tau = check_array(tau, (self.na,), "Simulator: tau")
-        over = np.abs(tau) > self.torque_limits * (1.0 + 1e-9)
-        n = int(over.sum())
-        if n:
-            if self.clip_count == 0:
-                names = [self.joint_names[i] for i in np.flatnonzero(over)]
-                logger.warning("t=%.3f: torques clipped at joints %s", self.time, names)
-            tau = np.clip(tau, -self.torque_limits, self.torque_limits)
+        magnitude = (np.abs(tau) if isinstance(tau, np.ndarray) and tau.dtype == np.float64
+                     and tau.shape == (self.na,) else None)
+        if magnitude is not None and (magnitude <= self._clip_above).all():
+            n = 0  # the common case, one comparison (NaN fails it and is checked below)
+        else:
+            tau = check_array(tau, (self.na,), "Simulator: tau")
+            over = np.abs(tau) > self._clip_above
+            n = int(over.sum())
+            if n:
+                if self.clip_count == 0:
+                    names = [self.joint_names[i] for i in np.flatnonzero(over)]
+                    logger.warning("t=%.3f: torques clipped at joints %s", self.time, names)
+                tau = np.clip(tau, -self.torque_limits, self.torque_limits)
         self.clip_count += n
         self.last_clipped = n
-        self.mj_data.ctrl[:] = self.converter.ctrl_from_tau(tau)
+        self.converter.write_ctrl(tau, self._ctrl)
         return n
 
     def step(self, tau: np.ndarray | None = None, force: np.ndarray | None = None) -> None:
         """Advance one time step with torques ``tau`` and an optional base force ``(3,)`` [N]."""
         if tau is not None:
             self.apply(tau)
-        self.mj_data.xfrc_applied[:] = 0.0
         if force is not None:
-            self.mj_data.xfrc_applied[self._push_body, :3] = force
+            xfrc = self.mj_data.xfrc_applied
+            xfrc[:] = 0.0
+            xfrc[self._push_body, :3] = force
+            self._pushing = True
+        elif self._pushing:  # the last step's force ends
+            self.mj_data.xfrc_applied[:] = 0.0
+            self._pushing = False
         self._mujoco.mj_step(self.mj_model, self.mj_data)
 
     # -- sensing (logs and tests only) ------------------------------------------------------
