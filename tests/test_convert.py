@@ -8,7 +8,7 @@ import pytest
 import hqp
 import hqp.robots
 from hqp.model import RobotModel
-from hqp.sim.convert import StateMap
+from hqp.sim.convert import StateMap, rotation_from_quat_xyzw
 
 ROBOTS = ["paper-humanoid", "g1", "talos"]
 
@@ -149,3 +149,46 @@ def test_mismatched_models_raise() -> None:
         StateMap(model, mujoco.MjModel.from_xml_string(xml))
     with pytest.raises(hqp.HQPError, match="expected shape"):
         StateMap(model, paper.mujoco_model()).ctrl_from_tau(np.zeros(3))
+
+
+def test_rotation_is_pinocchio_s_to_the_last_bit() -> None:
+    """The one rotation of the conversion: Eigen's normalized().toRotationMatrix(), same bits."""
+    rng = np.random.default_rng(5)
+    out = np.empty((3, 3))
+    for i in range(2000):
+        quat = rng.normal(size=4)
+        if i % 2:  # MuJoCo's quaternions: unit up to round-off
+            quat = quat / np.linalg.norm(quat) * (1.0 + 1e-13 * rng.normal())
+        x, y, z, w = quat
+        expected = pin.Quaternion(w, x, y, z).normalized().toRotationMatrix()
+        assert np.array_equal(rotation_from_quat_xyzw(quat, out), expected)
+    expected = pin.Quaternion(0.0, 0.0, 0.0, 0.0).normalized().toRotationMatrix()
+    assert np.array_equal(rotation_from_quat_xyzw(np.zeros(4), out), expected)
+
+
+def test_state_from_data_against_pinocchio(
+    setup: tuple[RobotModel, mujoco.MjModel, StateMap],
+) -> None:
+    """At random states: q and v read back; MuJoCo's free-joint linear velocity is the base
+    origin's world velocity (pinocchio's LOCAL_WORLD_ALIGNED joint velocity), its angular
+    velocity the base-frame one; the returned arrays do not alias MuJoCo's."""
+    model, mj, smap = setup
+    data = mujoco.MjData(mj)
+    rng = np.random.default_rng(6)
+    pdata = model.model.createData()
+    for _ in range(20):
+        q, v = random_state(model, rng)
+        data.qpos[:] = smap.qpos_from_q(q)
+        data.qvel[:] = smap.qvel_from_v(v, q)
+        q_read, v_read = smap.state_from_data(data)
+        np.testing.assert_allclose(q_read, q, atol=1e-15)
+        np.testing.assert_allclose(v_read, v, atol=1e-14)
+        np.testing.assert_array_equal(v_read, smap.v_from_qvel(data.qvel, q_read))
+        pin.forwardKinematics(model.model, pdata, q_read, v_read)
+        base = pin.getVelocity(model.model, pdata, 1, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
+        np.testing.assert_allclose(data.qvel[:3], base.linear, atol=1e-12)
+        local = pin.getVelocity(model.model, pdata, 1, pin.ReferenceFrame.LOCAL)
+        np.testing.assert_allclose(data.qvel[3:6], local.angular, atol=1e-12)
+        q_read[:] = 0.0
+        v_read[:] = 0.0
+        assert np.abs(data.qpos).max() > 0.0 and np.abs(data.qvel).max() > 0.0

@@ -22,6 +22,8 @@ Conventions, checked numerically in ``tests/test_convert.py``:
 
 from __future__ import annotations
 
+import math
+
 import mujoco
 import numpy as np
 import pinocchio as pin
@@ -93,19 +95,22 @@ class StateMap:
         self._act_v = np.array(act_v, dtype=int)
         self._act_gear = np.array(gear)
         self.nu = mj_model.nu
+        # One gather per vector: pinocchio entry i reads MuJoCo entry take[i] (the quaternion
+        # reordered from wxyz to xyzw, the joints permuted).
+        f, b = self._free_q, self._free_v
+        self._q_take = np.empty(self.nq, dtype=np.intp)
+        self._q_take[:7] = (f, f + 1, f + 2, f + 4, f + 5, f + 6, f + 3)
+        self._q_take[self._pin_q] = self._mj_q
+        self._v_take = np.empty(self.nv, dtype=np.intp)
+        self._v_take[:6] = np.arange(b, b + 6)
+        self._v_take[self._pin_v] = self._mj_v
+        self._rotation = np.empty((3, 3))  # workspace of state_from_data
 
     # -- configuration ------------------------------------------------------------------------
 
     def q_from_qpos(self, qpos: np.ndarray) -> np.ndarray:
         """Pinocchio configuration ``(nq,)`` from MuJoCo's ``qpos`` ``(mj.nq,)``."""
-        qpos = np.asarray(qpos, dtype=float)
-        q = np.empty(self.nq)
-        f = self._free_q
-        q[:3] = qpos[f : f + 3]
-        w, x, y, z = qpos[f + 3 : f + 7]
-        q[3:7] = (x, y, z, w)
-        q[self._pin_q] = qpos[self._mj_q]
-        return q
+        return np.asarray(qpos, dtype=float)[self._q_take]
 
     def qpos_from_q(self, q: np.ndarray) -> np.ndarray:
         """MuJoCo ``qpos`` ``(mj.nq,)`` from a pinocchio configuration ``(nq,)``.
@@ -123,14 +128,9 @@ class StateMap:
         qpos[self._mj_q] = q[self._pin_q]
         return qpos
 
-    @staticmethod
-    def _rotation_from_quat_xyzw(quat: np.ndarray) -> np.ndarray:
-        x, y, z, w = quat
-        return pin.Quaternion(w, x, y, z).normalized().toRotationMatrix()
-
     def base_rotation(self, q: np.ndarray) -> np.ndarray:
         """Return the base orientation ``R`` ``(3, 3)`` (world from base) of a configuration."""
-        return self._rotation_from_quat_xyzw(np.asarray(q, dtype=float)[3:7])
+        return rotation_from_quat_xyzw(np.asarray(q, dtype=float)[3:7], np.empty((3, 3)))
 
     # -- velocity ---------------------------------------------------------------------------
 
@@ -146,13 +146,19 @@ class StateMap:
 
     def v_from_qvel(self, qvel: np.ndarray, q: np.ndarray) -> np.ndarray:
         """Pinocchio velocity ``(nv,)`` from MuJoCo's ``qvel`` at pinocchio configuration ``q``."""
-        qvel = np.asarray(qvel, dtype=float)
-        R = self.base_rotation(q)
-        v = np.empty(self.nv)
+        return self._v_from_qvel(np.asarray(qvel, dtype=float),
+                                 rotation_from_quat_xyzw(np.asarray(q, dtype=float)[3:7],
+                                                         self._rotation))
+
+    def _v_from_qvel(self, qvel: np.ndarray, R: np.ndarray) -> np.ndarray:
+        """Return ``v = T^T qvel``, ``T = blkdiag(R, I3, I)`` orthogonal.
+
+        The one place where MuJoCo's world-frame linear velocity of the base becomes
+        pinocchio's base-frame one.
+        """
+        v = qvel[self._v_take]
         b = self._free_v
         v[0:3] = R.T @ qvel[b : b + 3]
-        v[3:6] = qvel[b + 3 : b + 6]
-        v[self._pin_v] = qvel[self._mj_v]
         return v
 
     def qvel_from_v(self, v: np.ndarray, q: np.ndarray) -> np.ndarray:
@@ -172,9 +178,9 @@ class StateMap:
         return qvel
 
     def state_from_data(self, data: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
-        """Pinocchio ``(q, v)`` from MuJoCo data."""
-        q = self.q_from_qpos(data.qpos)
-        return q, self.v_from_qvel(data.qvel, q)
+        """Pinocchio ``(q, v)`` from MuJoCo data (fresh arrays; MuJoCo's are read in place)."""
+        q = data.qpos[self._q_take]
+        return q, self._v_from_qvel(data.qvel, rotation_from_quat_xyzw(q[3:7], self._rotation))
 
     # -- forces and dynamics --------------------------------------------------------------------
 
@@ -187,6 +193,10 @@ class StateMap:
         """
         tau = check_array(tau, (self.nv - 6,), "StateMap.ctrl_from_tau: tau")
         return tau[self._act_v - 6] / self._act_gear
+
+    def write_ctrl(self, tau: np.ndarray, ctrl: np.ndarray) -> None:
+        """Write :meth:`ctrl_from_tau` of checked torques ``(nv - 6,)`` into ``ctrl`` ``(nu,)``."""
+        np.divide(tau[self._act_v - 6], self._act_gear, out=ctrl)
 
     def tau_from_ctrl(self, ctrl: np.ndarray) -> np.ndarray:
         """Actuated-joint torques ``(nv - 6,)`` (pinocchio order) of MuJoCo motors' ``ctrl``."""
@@ -218,3 +228,30 @@ class StateMap:
         dTv[b : b + 3] = self.base_rotation(q) @ np.cross(v[3:6], v[0:3])
         T = self.velocity_matrix(q)
         return T.T @ (np.asarray(data.qfrc_bias) + M_mj @ dTv)
+
+
+def rotation_from_quat_xyzw(quat: np.ndarray, out: np.ndarray) -> np.ndarray:
+    """Write the rotation matrix of a quaternion ``(x, y, z, w)`` into ``out`` ``(3, 3)``.
+
+    The quaternion is normalised first. The operations are Eigen's
+    ``Quaternion::normalized().toRotationMatrix()`` (pinocchio's) in the same order, so the
+    matrix is the same to the last bit (``tests/test_convert.py`` checks it), without building
+    a pinocchio object per call.
+
+    Returns:
+        ``out``.
+
+    """
+    x, y, z, w = quat.tolist()
+    n2 = (x * x + z * z) + (y * y + w * w)
+    if n2 > 0.0:  # (Eigen leaves a zero quaternion as it is)
+        n = math.sqrt(n2)
+        x, y, z, w = x / n, y / n, z / n, w / n
+    tx, ty, tz = 2.0 * x, 2.0 * y, 2.0 * z
+    twx, twy, twz = tx * w, ty * w, tz * w
+    txx, txy, txz = tx * x, ty * x, tz * x
+    tyy, tyz, tzz = ty * y, tz * y, tz * z
+    out.flat = (1.0 - (tyy + tzz), txy - twz, txz + twy,
+                txy + twz, 1.0 - (txx + tzz), tyz - twx,
+                txz - twy, tyz + twx, 1.0 - (txx + tyy))
+    return out

@@ -237,33 +237,36 @@ def closed_loop(
     for p in pushes:
         check_array(p.force, (3,), "closed loop: push force")
     sense = _Sensor(noise, delay_steps)
+    sensed = sense if noise is not None or delay_steps else None
     outcome = Outcome()
-    next_event = 0
+    next_event, n_timed = 0, len(timed)
+    steps_clock = clock == "steps"
+    dt = sim.dt
+    perf_counter = time.perf_counter
     reading = sim.contacts()
-    loop_start = time.perf_counter()
-    for k in range(int(round(duration / sim.dt))):
-        t = sim.time if clock == "simulator" else k * sim.dt
-        if next_event < len(timed) and timed[next_event].t <= t + 1e-12:
-            while next_event < len(timed) and timed[next_event].t <= t + 1e-12:
+    loop_start = perf_counter()
+    for k in range(int(round(duration / dt))):
+        t = k * dt if steps_clock else sim.time
+        if next_event < n_timed and timed[next_event].t <= t + 1e-12:
+            while next_event < n_timed and timed[next_event].t <= t + 1e-12:
                 ev = timed[next_event]
                 ev.action(sim, controller, t)
                 outcome.events.append((t, ev.name or f"event {next_event}"))
                 next_event += 1
             reading = sim.contacts()
         state = sim.state(reading)
-        w0 = time.perf_counter()
-        command = controller.step(sense(state, t), t)
-        step = Step(k, t, state, reading, command, time.perf_counter() - w0)
+        w0 = perf_counter()
+        command = controller.step(state if sensed is None else sensed(state, t), t)
+        step = Step(k, t, state, reading, command, perf_counter() - w0)
         if before_step is not None:
             before_step(step)
         before = sim.time
-        sim.step(command.tau, push_force(pushes, t))
+        sim.step(command.tau, push_force(pushes, t) if pushes else None)
         reading = sim.contacts()
         outcome.steps = k + 1
-        outcome.t_end = sim.time if clock == "simulator" else (k + 1) * sim.dt
+        outcome.t_end = (k + 1) * dt if steps_clock else sim.time
         if after_step is not None:
             after_step(step, reading)
-        outcome.wall_time = time.perf_counter() - loop_start
         # MuJoCo resets a diverging simulation (state and time back to the start): the run
         # has failed there, not started again
         reason = ("the simulation diverged (MuJoCo reset its state)" if sim.time < before
@@ -275,4 +278,5 @@ def closed_loop(
                 break
         if progress is not None and k % 100 == 0:
             progress(t)
+    outcome.wall_time = perf_counter() - loop_start
     return outcome

@@ -182,6 +182,8 @@ class Simulator:
             body = int(self.mj_model.geom_bodyid[g])
             foot = self._body_root_foot(body)
             self._geom_role[g] = -2 if g in self._floor_geoms else (-1 if foot is None else foot)
+        self._geom_roles = self._geom_role.tolist()
+        self._pyramidal = int(self.mj_model.opt.cone) == int(mujoco.mjtCone.mjCONE_PYRAMIDAL)
         self._feet = tuple(robot.feet)
         # sole corners in each sole's frame (fixed)
         self._sole_corners = [robot.contact(foot).corners() for foot in robot.feet]
@@ -199,6 +201,8 @@ class Simulator:
                             * np.linalg.norm(self.mj_model.opt.gravity))
         """Weight of the robot [N]."""
         self._mujoco = mujoco
+        self._ctrl = self.mj_data.ctrl  # (MuJoCo's array, written in place)
+        self._clip_above = self.torque_limits * (1.0 + 1e-9)
         self.reset()
 
     # -- state ------------------------------------------------------------------------------
@@ -227,6 +231,7 @@ class Simulator:
             self._weld_feet()
         self.clip_count = 0
         self.last_clipped = 0
+        self._pushing = False  # (mj_resetData cleared the applied forces)
 
     def _weld_feet(self) -> None:
         """Hold each welded foot at its current pose (the weld's relative pose, anchor at 0).
@@ -253,15 +258,35 @@ class Simulator:
     def state(self, reading: ContactReading | None = None) -> RobotState:
         """Return the current state in pinocchio's convention, with the feet's sensed contacts.
 
+        The sensed contacts are which feet touch the floor (:meth:`feet_touching`); the rest of
+        a contact reading (forces, centre of pressure) is computed only by :meth:`contacts`.
+
         Args:
             reading: The contact reading of the current instant, if already read.
 
         """
         q, v = self.converter.state_from_data(self.mj_data)
-        if reading is None:
-            reading = self.contacts()
-        contacts = dict(zip(self._feet, reading.foot_contact.tolist()))
-        return RobotState(q=q, v=v, t=self.time, contacts=contacts)
+        touching = self.feet_touching() if reading is None else reading.foot_contact
+        return RobotState(q, v, self.mj_data.time, dict(zip(self._feet, touching.tolist())))
+
+    def feet_touching(self) -> np.ndarray:
+        """Whether each foot touches the floor ``(nfeet,)`` (:meth:`contacts`' ``foot_contact``).
+
+        Reads only which geoms MuJoCo found in contact (no forces): the part of a contact
+        reading that the controller's sensed state needs.
+        """
+        touching = np.zeros(len(self._feet), dtype=bool)
+        if self._welds.size:  # the welds hold the feet
+            touching[:] = True
+        elif self.mj_data.ncon:
+            role = self._geom_roles  # (a few contacts: Python ints beat numpy calls)
+            for g1, g2 in self.mj_data.contact.geom.tolist():
+                r1, r2 = role[g1], role[g2]
+                if r1 == -2 and r2 >= 0:
+                    touching[r2] = True
+                elif r2 == -2 and r1 >= 0:
+                    touching[r1] = True
+        return touching
 
     # -- stepping ---------------------------------------------------------------------------
 
@@ -272,26 +297,36 @@ class Simulator:
             InvalidInput: Wrong shape or non-finite torques.
 
         """
-        tau = check_array(tau, (self.na,), "Simulator: tau")
-        over = np.abs(tau) > self.torque_limits * (1.0 + 1e-9)
-        n = int(over.sum())
-        if n:
-            if self.clip_count == 0:
-                names = [self.joint_names[i] for i in np.flatnonzero(over)]
-                logger.warning("t=%.3f: torques clipped at joints %s", self.time, names)
-            tau = np.clip(tau, -self.torque_limits, self.torque_limits)
+        magnitude = (np.abs(tau) if isinstance(tau, np.ndarray) and tau.dtype == np.float64
+                     and tau.shape == (self.na,) else None)
+        if magnitude is not None and (magnitude <= self._clip_above).all():
+            n = 0  # the common case, one comparison (NaN fails it and is checked below)
+        else:
+            tau = check_array(tau, (self.na,), "Simulator: tau")
+            over = np.abs(tau) > self._clip_above
+            n = int(over.sum())
+            if n:
+                if self.clip_count == 0:
+                    names = [self.joint_names[i] for i in np.flatnonzero(over)]
+                    logger.warning("t=%.3f: torques clipped at joints %s", self.time, names)
+                tau = np.clip(tau, -self.torque_limits, self.torque_limits)
         self.clip_count += n
         self.last_clipped = n
-        self.mj_data.ctrl[:] = self.converter.ctrl_from_tau(tau)
+        self.converter.write_ctrl(tau, self._ctrl)
         return n
 
     def step(self, tau: np.ndarray | None = None, force: np.ndarray | None = None) -> None:
         """Advance one time step with torques ``tau`` and an optional base force ``(3,)`` [N]."""
         if tau is not None:
             self.apply(tau)
-        self.mj_data.xfrc_applied[:] = 0.0
         if force is not None:
-            self.mj_data.xfrc_applied[self._push_body, :3] = force
+            xfrc = self.mj_data.xfrc_applied
+            xfrc[:] = 0.0
+            xfrc[self._push_body, :3] = force
+            self._pushing = True
+        elif self._pushing:  # the last step's force ends
+            self.mj_data.xfrc_applied[:] = 0.0
+            self._pushing = False
         self._mujoco.mj_step(self.mj_model, self.mj_data)
 
     # -- sensing (logs and tests only) ------------------------------------------------------
@@ -315,28 +350,31 @@ class Simulator:
         others: set[str] = set()
         fz_sum = 0.0
         moment = np.zeros(2)
-        ncon = int(d.ncon)
-        if ncon:
+        if d.ncon:  # a few contacts: Python ints and floats beat numpy calls
             contact = d.contact
-            role = self._geom_role[contact.geom]  # (ncon, 2)
-            floor1, floor2 = role[:, 0] == -2, role[:, 1] == -2
-            other = np.where(floor1, contact.geom[:, 1], contact.geom[:, 0])
-            foot = np.where(floor1, role[:, 1], role[:, 0])
-            with_floor = np.flatnonzero(floor1 | floor2)
-            fn = np.zeros(ncon)
-            wrench = self._wrench
-            for i in with_floor.tolist():
-                mujoco.mj_contactForce(m, d, i, wrench)
-                fn[i] = wrench[0]  # normal force in the contact frame
-            for i in with_floor[foot[with_floor] < 0].tolist():
-                body = int(m.geom_bodyid[int(other[i])])
-                others.add(mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, body) or str(body))
-            on_foot = with_floor[foot[with_floor] >= 0]
-            if on_foot.size:
-                touching[foot[on_foot]] = True
-                np.add.at(normal, foot[on_foot], fn[on_foot])
-                fz_sum = float(fn[on_foot].sum())
-                moment = fn[on_foot] @ contact.pos[on_foot, :2]
+            role = self._geom_roles
+            on_foot: list[int] = []  # contact indices
+            foot_of: list[int] = []  # the foot of each
+            for i, (g1, g2) in enumerate(contact.geom.tolist()):
+                if role[g1] == -2:
+                    foot, other = role[g2], g2
+                elif role[g2] == -2:
+                    foot, other = role[g1], g1
+                else:
+                    continue
+                if foot >= 0:
+                    on_foot.append(i)
+                    foot_of.append(foot)
+                else:
+                    body = int(m.geom_bodyid[other])
+                    others.add(mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, body) or str(body))
+            if on_foot:
+                fn = self._normal_forces(contact, on_foot)
+                for foot, f in zip(foot_of, fn.tolist()):  # in contact order
+                    touching[foot] = True
+                    normal[foot] += f
+                fz_sum = float(fn.sum())
+                moment = fn @ contact.pos[on_foot, :2]
         feet = d.site_xpos[self._foot_site_index]  # (a copy)
         if self._welds.size:  # the welds carry the support: their wrenches give force and CoP
             wrenches = self.foot_wrenches()
@@ -348,6 +386,31 @@ class Simulator:
                 moment += w[2] * p[:2] + np.array([-w[4], w[3]])
         cop = moment / fz_sum if fz_sum > 1e-9 else np.full(2, np.nan)
         return ContactReading(touching, feet, tuple(sorted(others)), normal, cop)
+
+    def _normal_forces(self, contact: object, which: list[int]) -> np.ndarray:
+        """Return the normal forces of the contacts ``which`` [N] (``mj_contactForce``'s).
+
+        The constraint forces decoded as MuJoCo decodes them (a pyramid's normal force is the
+        sum of its edge forces, added one after the other in MuJoCo's order: the same bits as
+        ``mj_contactForce``), without one call per contact.
+        """
+        efc = self.mj_data.efc_force
+        address = contact.efc_address  # type: ignore[attr-defined]
+        dim = contact.dim  # type: ignore[attr-defined]
+        pyramidal = self._pyramidal
+        out = []
+        for i in which:
+            a, n = int(address[i]), int(dim[i])
+            if a < 0:
+                out.append(0.0)
+            elif n == 1 or not pyramidal:
+                out.append(float(efc[a]))
+            else:
+                f = 0.0
+                for edge in efc[a: a + 2 * (n - 1)].tolist():
+                    f += edge
+                out.append(f)
+        return np.array(out)
 
     def foot_wrenches(self) -> np.ndarray:
         """Wrench the world exerts on each foot ``(nfeet, 6)``: force, torque about its site.

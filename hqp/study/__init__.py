@@ -13,7 +13,7 @@
 ``hqp sweep`` (:mod:`hqp.app.sweep`) is the command line over it.
 """
 
-from hqp.study.execute import RayUnavailable, connect, make_plan, run_study
+from hqp.study.execute import ClusterUnreachable, RayUnavailable, connect, make_plan, run_study
 from hqp.study.records import RecordFile, read_records
 from hqp.study.simulation import run_simulation
 from hqp.study.spec import KINDS, PushSearch, Study, load_study, simulation_id, study_from_dict
@@ -21,6 +21,7 @@ from hqp.study.spec import KINDS, PushSearch, Study, load_study, simulation_id, 
 __all__ = [
     "KINDS",
     "PushSearch",
+    "ClusterUnreachable",
     "RayUnavailable",
     "RecordFile",
     "Study",

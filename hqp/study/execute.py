@@ -19,8 +19,10 @@ import datetime
 import importlib
 import logging
 import os
+import socket
 import time
 from collections.abc import Callable
+from pathlib import Path
 from types import ModuleType
 from typing import Any, Protocol
 
@@ -40,6 +42,63 @@ RAY_MISSING = ("hqp sweep runs its simulations on Ray, which is not installed: "
 
 class RayUnavailable(HQPError):
     """Ray is not installed (:data:`RAY_MISSING`)."""
+
+
+class ClusterUnreachable(HQPError):
+    """``--address`` names no Ray cluster this machine can join (the message says why)."""
+
+
+CONNECT_TIMEOUT_S = 5.0
+"""How long :func:`connect` waits for a cluster's head to accept a connection [s]."""
+
+
+def parse_address(address: str) -> tuple[str, int]:
+    """Return ``(host, port)`` of a cluster address ``HOST:PORT`` (``ray start --head``'s).
+
+    Raises:
+        ClusterUnreachable: Not ``HOST:PORT`` with a port in 1..65535.
+
+    """
+    host, sep, port = address.strip().rpartition(":")
+    host = host.strip("[]")
+    if not sep or not host or not port.isdigit() or not 0 < int(port) < 65536:
+        raise ClusterUnreachable(f"--address {address!r}: expected HOST:PORT, the address "
+                                 "`ray start --head` prints (e.g. 10.0.0.5:6379)")
+    return host, int(port)
+
+
+def check_reachable(address: str, timeout: float = CONNECT_TIMEOUT_S) -> None:
+    """Check that a Ray head accepts connections at ``address`` (before Ray tries for minutes).
+
+    Raises:
+        ClusterUnreachable: Malformed address, unknown host, or nothing listening there.
+
+    """
+    host, port = parse_address(address)
+    try:
+        with socket.create_connection((host, port), timeout=timeout):
+            pass
+    except OSError as exc:
+        if isinstance(exc, TimeoutError):
+            why = f"no answer within {timeout:g} s"
+        else:
+            why = exc.strerror or type(exc).__name__
+        raise ClusterUnreachable(
+            f"no Ray cluster at {host}:{port} ({why}); start its head with "
+            f"`ray start --head --port={port}` or give the address it printed") from None
+
+
+def _worker_env() -> dict[str, Any]:
+    """Return the runtime environment of a cluster's workers: hqp importable from here.
+
+    Nodes that have hqp installed import theirs; a node sharing this machine's files (the
+    same machine, or a shared file system) also finds a source checkout run without
+    installing it (``PYTHONPATH``).
+    """
+    here = str(Path(__file__).resolve().parents[2])
+    paths = [here] + [p for p in os.environ.get("PYTHONPATH", "").split(os.pathsep)
+                      if p and p != here]
+    return {"env_vars": {"PYTHONPATH": os.pathsep.join(paths)}}
 
 
 class Plan(Protocol):
@@ -90,6 +149,8 @@ def connect(address: str | None = None, workers: int | None = None) -> ModuleTyp
 
     Raises:
         RayUnavailable: Ray is not installed.
+        ClusterUnreachable: ``address`` is malformed, nothing answers there, or Ray could not
+            join it (a missing authentication token, say): one line, before any simulation.
 
     """
     if address is None:
@@ -109,7 +170,17 @@ def connect(address: str | None = None, workers: int | None = None) -> ModuleTyp
         ray.init(num_cpus=workers or os.cpu_count() or 1, include_dashboard=False,
                  log_to_driver=False, configure_logging=False)
     else:
-        ray.init(address=address, log_to_driver=False, configure_logging=False)
+        check_reachable(address)
+        try:
+            ray.init(address=address, log_to_driver=False, configure_logging=False,
+                     runtime_env=_worker_env())
+        except (ConnectionError, RuntimeError, ValueError) as exc:
+            first = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
+            auth = "auth" in str(exc).lower() or "token" in str(exc).lower()
+            hint = ("; the cluster requires its token: set RAY_AUTH_TOKEN (or copy "
+                    "~/.ray/auth_token from the head, see `ray get-auth-token`)" if auth else "")
+            raise ClusterUnreachable(f"could not join the Ray cluster at {address}: "
+                                     f"{first}{hint}") from None
     return ray
 
 
