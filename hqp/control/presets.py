@@ -213,6 +213,8 @@ def add_standing_tasks(
     posture_kp: float = 50.0,
     angular_momentum_weight: float = 1e-3,
     angular_momentum_gain: float = 10.0,
+    redundancy_damping: float = 0.0,
+    redundancy_damping_gain: float = 10.0,
 ) -> None:
     """Add the standing tasks: centre of mass over the feet, angular momentum, trunk, posture.
 
@@ -230,6 +232,11 @@ def add_standing_tasks(
     trunk = OrientationTask(model, "trunk", kp=orientation_kp)
     trunk.set_goal(model.frame_placement("trunk").rotation.copy())
     stack.add(trunk)
+    if redundancy_damping > 0.0:
+        damping = PostureTask(model, name="damping", weight=redundancy_damping, kp=0.0,
+                              kv=redundancy_damping_gain)
+        damping.set_configuration(robot.q_standing, model)
+        stack.add(damping, Category.OPERATIONAL)
     posture = PostureTask(model, kp=posture_kp)
     posture.set_configuration(robot.q_standing, model)
     stack.add(posture)
@@ -251,6 +258,8 @@ def standing_stack(
     ramp_time: float = 0.6,
     max_joint_acceleration: float = 50.0,
     braking_approach_time: float = 0.0,
+    redundancy_damping: float = 0.0,
+    redundancy_damping_gain: float = 10.0,
 ) -> tuple[Stack, list[Task]]:
     """Build the stack of a humanoid standing on both feet, and its contacts.
 
@@ -294,6 +303,14 @@ def standing_stack(
         braking_approach_time: Time over which the joint-limit bounds approach the braking
             curve [s] (0: the discrete bound alone; 0.02 is the measured choice,
             docs/control.md).
+        redundancy_damping: Weight of a joint damping ``qdd = -d v`` (a posture task named
+            ``damping`` with ``kp = 0``) inside the operational level (0: none). A task of
+            that level whose goal is out of reach leaves a residual that its least squares
+            spends along the directions it barely controls (``1 / sigma`` per unit of
+            residual); the damping regularises that level (damped least squares) without
+            moving its equilibria (it asks nothing at rest). Opt-in: docs/control.md, "An
+            unreachable goal".
+        redundancy_damping_gain: Its damping ``d`` [1/s].
 
     Returns:
         ``(stack, contacts)``; pass both to :class:`~hqp.control.servo.WholeBodyController`.
@@ -306,7 +323,9 @@ def standing_stack(
         braking_approach_time=braking_approach_time)
     add_standing_tasks(stack, robot, model, com_kp=com_kp, orientation_kp=orientation_kp,
                        posture_kp=posture_kp, angular_momentum_weight=angular_momentum_weight,
-                       angular_momentum_gain=angular_momentum_gain)
+                       angular_momentum_gain=angular_momentum_gain,
+                       redundancy_damping=redundancy_damping,
+                       redundancy_damping_gain=redundancy_damping_gain)
     return stack, contacts
 
 
