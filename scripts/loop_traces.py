@@ -1,11 +1,15 @@
-"""Closed-loop traces whose bits the loop's speed-ups must not change (tests/test_loop_bits.py).
+"""Closed-loop traces whose bits a change to the loop must not change, on one machine.
+
+A developer's check, not a test: the digests depend on the machine (its instruction set, the
+native core's build flags, the memory layout of the process), so they are compared before and
+after a change on the same machine: ``PYTHONPATH=. python scripts/loop_traces.py --record``
+before, ``PYTHONPATH=. python scripts/loop_traces.py`` after (exit 1 where a digest differs).
 
 Each trace maps a name to an array of one run: a behavior run (g1 walking) through
 :func:`hqp.sim.closed_loop` as ``hqp run`` drives it, and a pushed standing run through
 :func:`hqp.sim.simulate`. :func:`digests` hashes them (SHA-256 of each float64 array's bytes).
 
-Record again (only when the controller or the robot files change on purpose, never to make a
-loop change pass): ``PYTHONPATH=. python tests/_loop_traces.py``.
+Record again only before a loop change, never to make one pass.
 """
 
 from __future__ import annotations
@@ -86,6 +90,24 @@ def record() -> dict[str, dict[str, str]]:
     return {"walk_g1": digests(behavior_trace()), "stand_push_g1": digests(stand_trace())}
 
 
+def main() -> int:
+    """``--record``: write the digests of this machine; else compare with the recorded ones."""
+    import argparse
+
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--record", action="store_true", help="record the digests")
+    args = parser.parse_args()
+    now = record()
+    if args.record:
+        FIXTURE.write_text(json.dumps(now, indent=1, sort_keys=True) + "\n")
+        print(f"wrote {FIXTURE}")
+        return 0
+    before = json.loads(FIXTURE.read_text())
+    changed = [f"{run}/{key}" for run, arrays in now.items() for key, digest in arrays.items()
+               if before.get(run, {}).get(key) != digest]
+    print("identical" if not changed else "changed: " + ", ".join(changed))
+    return 1 if changed else 0
+
+
 if __name__ == "__main__":
-    FIXTURE.write_text(json.dumps(record(), indent=1, sort_keys=True) + "\n")
-    print(f"wrote {FIXTURE}")
+    raise SystemExit(main())
