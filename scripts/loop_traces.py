@@ -54,7 +54,7 @@ def behavior_trace(name: str = "walk", robot: str = "g1",
 
 
 def stand_trace(robot: str = "g1", duration: float = STAND_SECONDS) -> dict[str, np.ndarray]:
-    """The float arrays of :func:`hqp.sim.simulate`'s log of a pushed standing run."""
+    """Return the float arrays of :func:`hqp.sim.simulate`'s log of a pushed standing run."""
     import hqp.robots as robots
     from hqp.controller import standing_controller
     from hqp.sim import Push, simulate
@@ -74,7 +74,7 @@ def stand_trace(robot: str = "g1", duration: float = STAND_SECONDS) -> dict[str,
 
 
 def hash_text(text: str) -> float:
-    """A float standing for a text (its digest's first 6 bytes) so it hashes with the arrays."""
+    """Return a float standing for a text (its digest's first 6 bytes), hashed with the arrays."""
     return float(int.from_bytes(hashlib.sha256(text.encode()).digest()[:6], "big"))
 
 
