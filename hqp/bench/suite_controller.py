@@ -7,9 +7,10 @@ Per robot (``paper-humanoid``, ``g1``, ``talos``), the same states are handed to
   contact, centre of mass, trunk upright, posture, torque, friction, centre-of-pressure and
   viable joint limits; ``diagnostics="residuals"``: per-task residual flags, no per-task SVDs)
   without the servo's torque-rate level (:data:`RATE_LEVEL`);
-- ``hqp/basis/native``: the same standing controller on the native step (the default of a
-  bundled robot's controller, :class:`hqp.control.native.NativeEngine`: model pass, rows,
-  strict hierarchy and torques in one call into the C++ core, the report from its levels);
+- ``hqp/basis/native``: the README's controller, :func:`hqp.control.presets.standing_controller`
+  with every default (the native step: model pass, rows, strict hierarchy, torques and the
+  full feasibility report in one call into the C++ core; the servo's torque-rate level; the
+  solver's work budget);
 - ``nullspace``: :func:`hqp.control.presets.standing_nullspace_controller` (same stack, joint limits
   as the papers' activation zones; inequalities not enforced);
 - ``placo``: PlaCo's ``DynamicsSolver`` on the same task set (:mod:`hqp.bench.placo_step`);
@@ -25,11 +26,13 @@ and ``solve_failures``. Without its environment a peer's row says so (``skipped`
 command that makes it) and has no times.
 
 A unit of work is one full control step: model update, task rows, solve (and for hqp and the
-law, torques and the feasibility report). States: the ``(q, v)`` of the recorded ``stand``
-steps of the robot (pushes included) when the package has them, else the standing
-configuration with seeded perturbations; steps are made at ``t >= 1 s`` (task ramps done).
+law, torques and the feasibility report). States: :data:`SEQUENCE_STEPS` consecutive states of
+a closed loop of the robot in MuJoCo (the README's controller holding it through a forward push,
+:func:`states`), stepped through in order by every configuration, each with its own warm starts
+(one jump back to the first state per pass); steps are made at ``t >= 1 s`` (task ramps done).
 Timing: :func:`hqp.bench.interleave.interleaved`, all configurations of a robot in the same
-rounds, one BLAS thread (PlaCo is single-threaded).
+rounds, one BLAS thread (PlaCo is single-threaded). Beside the median and p95 of the wall
+time, ``cpu_p99_ms`` and ``cpu_max_ms`` give the tail of the CPU time per step.
 
 Extra fields: ``phases_ms`` (median model update, rows, solve, torques, report of the step),
 ``levels_ms`` (median time of each level in the solve), ``over_placo`` (median over PlaCo's
@@ -64,13 +67,15 @@ NATIVE_STEP = "hqp/basis/native"
 """The native core's whole step (the contract's row name): the controller on the native step."""
 
 RATE_LEVEL: float | None = None
-"""The servo's torque-rate level of the hqp rows: none. The suite's states are recorded steps
-replayed in a cycle, not consecutive steps of one trajectory, and the level bounds a step's
-torques by the previous step's: on them it is in conflict at every step (measured, session 17,
-with the default level: ``hqp/basis/native`` 1.4 / 2.4 / 2.9 ms median on paper-humanoid, g1
-and talos, level costs 382 and 21300 above the tightest configuration), a case a control loop
-never meets. Its cost in closed loop: ``hqp compare``'s ``step_time_median_ms``
-(docs/benchmarks.md)."""
+"""The servo's torque-rate level of the ``hqp/<algorithm>/<backend>`` rows: none (their
+Python step is timed as a solver of the same levels). ``hqp/basis/native`` is the README's
+controller with every default, the torque-rate level included."""
+
+SEQUENCE_STEPS = 200
+"""Consecutive closed-loop states of a robot the suite steps through, in order."""
+
+PUSH_PER_KG = 1.5
+"""The sequence's forward push on the base, per kilogram of the robot [N/kg], over 0.1 s."""
 
 T0 = 1.0
 """Control time of the first measured step [s] (after the stack's task ramps)."""
@@ -86,22 +91,27 @@ SLOW_SECONDS = 0.25
 states) is not interleaved: its row reports the probe (``"probe_only": true``)."""
 
 
-def states(robot_name: str, count: int = 8, seed: int = 0) -> list[tuple[np.ndarray, np.ndarray]]:
-    """States ``(q, v)`` of the suite for a robot (see the module docstring)."""
-    path = DATA_DIR / f"stand_{robot_name}.npz"
-    if path.is_file():
-        steps = load(path)
-        out = [(s.q.copy(), s.v.copy()) for s in steps if s.q.size]
-        if out:
-            return out[:count]
+def states(robot_name: str, count: int = SEQUENCE_STEPS) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Consecutive closed-loop states ``(q, v)`` of a robot, in order (module docstring).
+
+    The README's standing controller (every default) holds the robot in MuJoCo at 1 kHz; a
+    forward push of :data:`PUSH_PER_KG` times its mass acts on the base from 0.3 s to 0.4 s;
+    the states of the ``count`` steps from 0.25 s on are recorded (calm, pushed, recovering).
+    """
+    from hqp.sim import Simulator
+
     robot = load_robot(robot_name)
-    nv = robot.model().nv
-    rng = np.random.default_rng(seed)
-    out = []
-    for _ in range(count):
-        v = np.zeros(nv)
-        v[6:] = rng.normal(0.0, 0.01, nv - 6)  # joints only: the soles stay still
-        out.append((robot.q_standing.copy(), v))
+    ctrl = standing_controller(robot)
+    sim = Simulator(robot)
+    push = np.array([PUSH_PER_KG * ctrl.model.mass, 0.0, 0.0])
+    out: list[tuple[np.ndarray, np.ndarray]] = []
+    start = 250
+    for k in range(start + count):
+        state = sim.state()
+        if k >= start:
+            out.append((np.array(state.q), np.array(state.v)))
+        command = ctrl.step(state, k * sim.dt)
+        sim.step(command.tau, push if 300 <= k < 400 else None)
     return out
 
 
@@ -130,9 +140,8 @@ class _Stepper:
         if name in (TSID, PLACO):
             self.peer = TsidStanding(robot, dt) if name == TSID else PlacoStanding(robot, dt)
             self.ctrl = None
-        elif name == NATIVE_STEP:
-            self.ctrl = standing_controller(robot, dt=dt, diagnostics="residuals",
-                                            max_torque_rate=RATE_LEVEL)
+        elif name == NATIVE_STEP:  # the README's controller, every default
+            self.ctrl = standing_controller(robot, dt=dt)
             if self.ctrl.native is None:
                 raise RuntimeError("the standing controller has no native step")
         elif name == "nullspace":
@@ -227,7 +236,10 @@ def _shape(steppers: dict[str, _Stepper]) -> tuple[int | None, int | None, int |
 
 def _measured(row: dict[str, Any], st: _Stepper, t: Samples, probe_only: bool) -> None:
     """Add the timings and the step's phases and levels to a row."""
+    cpu = 1e3 * t.cpu if t.cpu.size else 1e3 * t.samples
     row.update(median_ms=round(t.median_ms, 4), p95_ms=round(t.p95_ms, 4),
+               cpu_p99_ms=round(float(np.percentile(cpu, 99)), 4),
+               cpu_max_ms=round(float(cpu.max()), 4),
                settled=t.settled, samples=int(t.samples.size),
                cpu_median_ms=round(t.cpu_median_ms, 4) if t.cpu.size else None)
     if probe_only:
@@ -259,7 +271,7 @@ def run_robot(robot_name: str, names: Sequence[str], *, quick: bool = False,
               progress: Callable[[str], None] | None = None) -> list[dict[str, Any]]:
     """Rows of one robot (a bundled name or a robot TOML file; rows carry its name)."""
     robot = load_robot(robot_name)
-    sts = states(robot_name, count=2 if quick else 8)
+    sts = states(robot_name, count=20 if quick else SEQUENCE_STEPS)
     steppers: dict[str, _Stepper] = {}
     failed: dict[str, str] = {}
     skipped: dict[str, str] = {}
@@ -298,14 +310,14 @@ def _measure(robot_name: str, names: Sequence[str], steppers: dict[str, _Stepper
         st.record = True
     fns = {n: st for n, st in steppers.items() if n not in slow}
     settings = dict(warmup=2, batch=2, min_samples=4, max_seconds=3.0) if quick else dict(
-        warmup=2 * len(sts), batch=len(sts), min_samples=80, max_seconds=45.0)
+        warmup=len(sts), batch=len(sts), min_samples=len(sts), max_seconds=45.0)
     timings = interleaved(fns, **settings) if fns else {}  # type: ignore[arg-type]
     round_trip: dict[str, Samples] = {}
     for name, st in steppers.items():
         if st.peer is not None and name in timings:
             round_trip[name] = timings[name]
             timings[name] = _worker_samples(st, timings[name])
-    ex, contract_excess = _accuracy(steppers, sts)
+    ex, contract_excess = _accuracy(steppers, sts[::20])
     n_var, n_levels, n_rows = _shape(steppers)
     rows: list[dict[str, Any]] = []
     for name in names:
