@@ -158,7 +158,6 @@ def test_a_command_of_the_pages_exits_0(page, command, tmp_path):
 _SESSION = re.compile(r"\b" + "sess" + r"ions?\s+\d", re.I)
 
 
-@pytest.mark.xfail(strict=True, reason="the docs and comments are rewritten next")
 def test_no_tracked_file_speaks_of_numbered_sessions():
     if shutil.which("git") is None or not (ROOT / ".git").exists():
         pytest.skip("not a git checkout")

@@ -144,8 +144,8 @@ def test_walk_makes_eight_footsteps_forward() -> None:
 
 
 @pytest.mark.slow
-# a strict xfail from session 12 to 15: one step 0.000548 N m past a torque limit, clipped by
-# the servo; gone since the hierarchy's first pass tries DAQP's cheap attempts only (a level
+# formerly a strict xfail: one step 0.000548 N m past a torque limit, clipped by the servo;
+# gone since the hierarchy's first pass tries DAQP's cheap attempts only (a level
 # they cannot solve goes to the absorbing pass instead of the relaxed-bound and ProxQP retries)
 def test_walk_meets_the_torque_limits_without_the_servo_clipping() -> None:
     assert _walk().metrics["controller_clipped_steps"] == 0
@@ -153,7 +153,7 @@ def test_walk_meets_the_torque_limits_without_the_servo_clipping() -> None:
 
 @pytest.mark.slow
 def test_walk_changes_its_torques_by_less_than_5_nm_per_step() -> None:
-    # the servo's torque-rate level, on by default since session 17 (4 N m per 1 ms step;
+    # the servo's torque-rate level, on by default (4 N m per 1 ms step;
     # measured 4.1 N m: the level yields a little to the contact limits above it at a
     # touchdown); 52 N m without it, when a single-support swing drove the arms to their
     # acceleration bounds

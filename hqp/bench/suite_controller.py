@@ -62,11 +62,10 @@ NATIVE_STEP = "hqp/basis/native"
 RATE_LEVEL: float | None = None
 """The servo's torque-rate level of the hqp rows: none. The suite's states are recorded steps
 replayed in a cycle, not consecutive steps of one trajectory, and the level bounds a step's
-torques by the previous step's: on them it is in conflict at every step (measured, session 17,
-with the default level: ``hqp/basis/native`` 1.4 / 2.4 / 2.9 ms median on paper-humanoid, g1
-and talos, level costs 382 and 21300 above the tightest configuration), a case a control loop
+torques by the previous step's: on them it would be in conflict at every step (several times
+the step's cost, level costs far above the tightest configuration's), a case a control loop
 never meets. Its cost in closed loop: ``hqp compare``'s ``step_time_median_ms``
-(docs/benchmarks.md)."""
+(docs/results/benchmarks.md)."""
 
 T0 = 1.0
 """Control time of the first measured step [s] (after the stack's task ramps)."""
