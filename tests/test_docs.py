@@ -79,7 +79,7 @@ NOT_RUN = {
     "hqp view": "a server that runs until stopped: tests/test_view.py drives it in a browser",
     "hqp sweep push-map": "a study of hundreds of simulations (minutes on 2 cores): "
                           "tests/test_study_ray.py runs a small push map",
-    "hqp sweep grid": "18 simulations of 5 s: tests/test_study.py runs grids",
+    "hqp sweep grid": "18 simulations of 5 s: tests/test_study_ray.py runs a tiny grid",
     "hqp sweep study.toml": "needs the user's study file",
     "hqp bench --suite controller": "about 100 s (every backend on three robots): "
                                     "tests/test_bench_suites.py runs the suite on a subset",

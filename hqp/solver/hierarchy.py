@@ -352,7 +352,7 @@ def solve(
             ``"cascade"`` (one QP per level over the full ``x``, the baseline).
 
     Returns:
-        The :class:`Solution` (``x`` of shape ``(n,)``, one report per level, timings).
+        The lexicographic optimum (``x`` of shape ``(n,)``, one report per level, timings).
 
     Raises:
         InvalidLevel: Malformed level (message names the level and the field).
