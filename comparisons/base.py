@@ -11,11 +11,12 @@ Figures 4 and 5.
 from __future__ import annotations
 
 import abc
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
 from comparisons.metrics import Trace, run_metrics
+from hqp.bench.worker import PeerUnavailable
 from hqp.control.presets import CONTROLLER_NAMES
 from hqp.errors import InvalidInput, UnknownName
 from hqp.plots import Panel
@@ -78,19 +79,37 @@ class RunResult:
 
 @dataclass
 class ScenarioResult:
-    """All runs of one scenario on one robot."""
+    """All runs of one scenario on one robot.
+
+    Attributes:
+        scenario: The scenario's name.
+        robot: The robot's name.
+        runs: The runs made.
+        skipped: Controllers requested but not run on this machine (a peer without its
+            environment): ``{"controller", "hierarchies", "skipped"}``, the last saying why
+            and how to add it.
+
+    """
 
     scenario: str
     robot: str
     runs: list[RunResult] = field(default_factory=list)
+    skipped: list[dict[str, Any]] = field(default_factory=list)
 
     def to_json(self) -> dict[str, Any]:
-        """Return the contract's object ``{"scenario", "robot", "runs": [...]}``."""
-        return {
+        """Return the contract's object ``{"scenario", "robot", "runs": [...]}``.
+
+        A controller that was not run is not a run: it is listed under ``"skipped"``, a key
+        present only when something was skipped.
+        """
+        out: dict[str, Any] = {
             "scenario": self.scenario,
             "robot": self.robot,
             "runs": [r.row() for r in self.runs],
         }
+        if self.skipped:
+            out["skipped"] = [dict(s) for s in self.skipped]
+        return out
 
 
 class Scenario(abc.ABC):
@@ -161,8 +180,12 @@ class Scenario(abc.ABC):
         duration: float | None = None,
         progress: Progress = _quiet,
         contacts: str = CONTACT_MODES[0],
+        unavailable: Mapping[str, str] | None = None,
     ) -> ScenarioResult:
         """Run every requested controller on every hierarchy.
+
+        A peer whose environment is missing (``placo``: :class:`hqp.bench.worker.PeerUnavailable`)
+        is not run: the result lists it under ``skipped`` with the reason.
 
         Args:
             robot: Robot name (default: the scenario's first).
@@ -171,6 +194,7 @@ class Scenario(abc.ABC):
             progress: Receives one message per run (and the simulator's progress).
             contacts: ``"unilateral"`` (MuJoCo's floor contacts, the default) or ``"welded"``
                 (the papers' rigid feet: weld equalities hold the soles).
+            unavailable: Controllers known not to run here, with why (skipped, not tried).
 
         Raises:
             UnknownName: Unknown robot, controller or contact mode (lists the valid ones).
@@ -186,13 +210,31 @@ class Scenario(abc.ABC):
         if not duration > 0.0:
             raise InvalidInput(f"scenario {self.name!r}: duration must be positive, got {duration}")
         result = ScenarioResult(self.name, robot)
+        skipped = dict(unavailable or {})
         for k, spec in enumerate(specs):
-            progress(
-                f"[{self.name}] run {k + 1}/{len(specs)}: controller {spec.controller}, "
-                f"hierarchy {spec.hierarchy}, {duration:g} s on {robot}, {contacts} contacts"
-            )
-            res = self.simulate(robot, spec, duration, progress)
+            if spec.controller not in skipped:
+                progress(
+                    f"[{self.name}] run {k + 1}/{len(specs)}: controller {spec.controller}, "
+                    f"hierarchy {spec.hierarchy}, {duration:g} s on {robot}, {contacts} contacts"
+                )
+                try:
+                    res = self.simulate(robot, spec, duration, progress)
+                except PeerUnavailable as exc:
+                    skipped[spec.controller] = str(exc)
+            if spec.controller in skipped:
+                _skip(result, spec, skipped[spec.controller], progress)
+                continue
             res.trace.contacts = contacts
             res.metrics = {**run_metrics(res.trace), **res.metrics}
             result.runs.append(res)
         return result
+
+
+def _skip(result: ScenarioResult, spec: RunSpec, reason: str, progress: Progress) -> None:
+    """List a run that was not made under its controller's ``skipped`` entry."""
+    entry = next((e for e in result.skipped if e["controller"] == spec.controller), None)
+    if entry is None:
+        progress(f"[{result.scenario}] {spec.controller} skipped: {reason}")
+        entry = {"controller": spec.controller, "hierarchies": [], "skipped": reason}
+        result.skipped.append(entry)
+    entry["hierarchies"].append(spec.hierarchy)

@@ -96,8 +96,8 @@ class BoxGrab(Scenario):
     def simulate(self, robot: str, spec: RunSpec, duration: float, progress: Progress) -> RunResult:
         """Run one controller on one hierarchy in MuJoCo."""
         rob, model, hierarchy, goals = self.build(robot, spec)
-        log, note, support = run_controller(spec.controller, rob, model, hierarchy, duration,
-                                            progress, contacts=self.contacts)
+        log, note, support, own = run_controller(spec.controller, rob, model, hierarchy, duration,
+                                                 progress, contacts=self.contacts)
         right, left = rob.hands[1], rob.hands[0]
         q = np.asarray(log.q)
         _, left_pos = positions(rob, q, (left,))
@@ -110,7 +110,8 @@ class BoxGrab(Scenario):
             "trunk_tilt_max_deg": float(tilt.max()),
         }
         left_goal = np.broadcast_to(goals[left], left_pos.shape)
-        return RunResult(spec, metrics, trace, self.panels(trace, left_pos, left_goal), note)
+        return RunResult(spec, {**metrics, **own}, trace,
+                         self.panels(trace, left_pos, left_goal), note)
 
     @staticmethod
     def panels(trace: Trace, left: np.ndarray, left_goal: np.ndarray) -> list[Panel]:

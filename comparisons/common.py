@@ -245,11 +245,15 @@ def commanded_margin(robot: Robot, corners: np.ndarray, wrenches: Any,
 
 
 class ControllerRun(NamedTuple):
-    """What :func:`run_controller` returns: the simulator's log, the note, the support."""
+    """What :func:`run_controller` returns: log, note, support, the controller's own figures.
+
+    ``metrics``: a peer's worker figures (its step and round-trip times), else empty.
+    """
 
     log: Log
     note: str
     support: Support
+    metrics: dict[str, Any]
 
 
 def run_controller(
@@ -285,19 +289,25 @@ def run_controller(
 
     Returns:
         The simulator's log, a note on what the controller cannot express ("" if nothing),
-        and the support wrenches.
+        the support wrenches, and the controller's own metrics (PlaCo: its worker's figures,
+        :meth:`comparisons.placo_runner.PlacoController.metrics`; the log's step times are
+        then the step's own, the pipe not counted).
 
     Raises:
         InvalidInput: Unknown contact mode.
+        PeerUnavailable: ``placo`` without PlaCo's environment (the message says how to
+            make it).
 
     """
     note = ""
+    peer: Any = None
     if torque_scale != 1.0:
         model.tau_max = model.tau_max * float(torque_scale)
     if spec_controller == "placo":
         from comparisons.placo_runner import PlacoController, placo_note
 
         controller: Any = PlacoController(robot, hierarchy)
+        peer = controller
         note = placo_note(controller, hierarchy)
     else:
         controller = make_controller(spec_controller, robot, model, hierarchy, zone=zone)
@@ -307,6 +317,31 @@ def run_controller(
                     "activation zones")
             if hierarchy.collision:
                 note += "; obstacle-avoidance rows are not enforced"
+    own: dict[str, Any] = {}
+    try:
+        log, wrenches, cops, margins = _closed_loop(robot, controller, duration, events,
+                                                    progress, wrap, contacts, model.tau_max)
+        if peer is not None:
+            log.step_time = np.asarray(peer.step_time[: log.t.size])
+            own = peer.metrics()
+    finally:
+        if peer is not None:
+            peer.close()
+    nfeet = len(robot.feet)
+    half = np.array([[robot.contact(f).half_length, robot.contact(f).half_width]
+                     for f in robot.feet])
+    margin = (None if any(m is None for m in margins)
+              else np.array(margins, dtype=float))
+    support = Support(np.array(wrenches).reshape(-1, nfeet, 6),
+                      np.array(cops).reshape(-1, nfeet, 2), half, margin)
+    return ControllerRun(log, note, support, own)
+
+
+def _closed_loop(robot: Robot, controller: Any, duration: float, events: Sequence[Any],
+                 progress: Callable[[str], None], wrap: Callable[[Any], Any] | None,
+                 contacts: str, tau_max: np.ndarray
+                 ) -> tuple[Log, list[np.ndarray], list[np.ndarray], list[float | None]]:
+    """Simulate a controller (wrapped first) in MuJoCo; the log and the support per step."""
     if wrap is not None:
         controller = wrap(controller)
     last = [-1.0]
@@ -316,7 +351,7 @@ def run_controller(
             last[0] = t
             progress(f"  t = {t:.1f} s")
 
-    sim = Simulator(robot, dt=DT, contacts=contacts, torque_limits=model.tau_max)
+    sim = Simulator(robot, dt=DT, contacts=contacts, torque_limits=tau_max)
     wrenches: list[np.ndarray] = []
     cops: list[np.ndarray] = []
     margins: list[float | None] = []
@@ -329,11 +364,4 @@ def run_controller(
                                         getattr(command, "wrenches", None), s.weight))
 
     log = simulate(robot, controller, duration, events, sim=sim, progress=tick, on_step=record)
-    nfeet = len(robot.feet)
-    half = np.array([[robot.contact(f).half_length, robot.contact(f).half_width]
-                     for f in robot.feet])
-    margin = (None if any(m is None for m in margins)
-              else np.array(margins, dtype=float))
-    support = Support(np.array(wrenches).reshape(-1, nfeet, 6),
-                      np.array(cops).reshape(-1, nfeet, 2), half, margin)
-    return ControllerRun(log, note, support)
+    return log, wrenches, cops, margins

@@ -207,14 +207,14 @@ class HandReach(Scenario):
     def simulate(self, robot: str, spec: RunSpec, duration: float, progress: Progress) -> RunResult:
         """Run one controller on one hierarchy in MuJoCo."""
         rob, model, hierarchy, goals = self.build(robot, spec)
-        log, note, support = run_controller(spec.controller, rob, model, hierarchy, duration,
-                                            progress, zone=self.parameters.zone,
-                                            contacts=self.contacts,
-                                            torque_scale=self.parameters.torque_scale)
+        log, note, support, own = run_controller(spec.controller, rob, model, hierarchy, duration,
+                                                 progress, zone=self.parameters.zone,
+                                                 contacts=self.contacts,
+                                                 torque_scale=self.parameters.torque_scale)
         trace = trace_from_log(rob, log, goals["cog"], hand_frame=rob.hands[1],
                                hand_goal=goals["hand"], support=support,
                                tau_max=model.tau_max)
-        return RunResult(spec, limit_metrics(trace), trace, self.panels(trace), note)
+        return RunResult(spec, {**limit_metrics(trace), **own}, trace, self.panels(trace), note)
 
     # -- figure -----------------------------------------------------------------------------
 

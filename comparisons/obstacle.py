@@ -150,8 +150,8 @@ class Obstacle(Scenario):
         def wrap(controller: Any) -> Any:
             return MovingObstacle(controller, world, "obstacle", origin)
 
-        log, note, support = run_controller(spec.controller, rob, model, hierarchy, duration,
-                                            progress, wrap=wrap, contacts=self.contacts)
+        log, note, support, own = run_controller(spec.controller, rob, model, hierarchy, duration,
+                                                 progress, wrap=wrap, contacts=self.contacts)
         if spec.controller == "placo":
             note += "; the obstacle is not given to PlaCo (no capsule-to-sphere primitive mapped)"
         q, t = np.asarray(log.q), np.asarray(log.t)
@@ -159,7 +159,7 @@ class Obstacle(Scenario):
         trace = trace_from_log(rob, log, feet[:2], hand_frame=rob.hands[1], hand_goal=hand_goal,
                                extra={"obstacle_distance": dist}, support=support)
         metrics = {"obstacle_distance_min_cm": 1e2 * float(dist.min())}
-        return RunResult(spec, metrics, trace, self.panels(trace), note)
+        return RunResult(spec, {**metrics, **own}, trace, self.panels(trace), note)
 
     @staticmethod
     def panels(trace: Trace) -> list[Panel]:

@@ -45,19 +45,37 @@ PlaCo's task acceleration is ``kp (x_target - x) + kd (v_target - v) +
 a_target``; hqp sets ``kp = kd = 0`` and ``a_target`` to the hqp task's own
 reference acceleration (:class:`hqp.tasks.reference.PDReference`) at every
 step, so every controller tracks the same references.
+
+PlaCo (``placo==0.10.2`` pins ``pin==3.8.0``, hqp is on pinocchio 4) runs in a
+worker process of its own environment (:mod:`hqp.bench.placo_worker`, driven
+through :mod:`hqp.bench.worker`; ``python -m hqp.bench.peer_env placo`` makes
+it, and ``hqp compare`` does so on first use). The references are computed
+here, on hqp's model at the measured state, and sent with the state; a run's
+``step_time_median_ms`` is that work plus PlaCo's step as the worker times it
+(the pipe not counted: ``round_trip_median_ms`` and ``placo_step_median_ms``
+give it apart).
 """
 
 from __future__ import annotations
 
 import time
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from comparisons.common import DT, JOINT_VELOCITY_SCALE, Hierarchy, braking_acceleration
+from hqp.bench.placo_step import WORKER
+from hqp.bench.worker import start
 from hqp.controller import Command, FeasibilityReport
+from hqp.errors import InvalidInput
+from hqp.model import RobotModel
 from hqp.robots import Robot
+from hqp.tasks.com import CoMTask
+from hqp.tasks.orientation import OrientationTask
+from hqp.tasks.position import PositionTask
+from hqp.tasks.posture import PostureTask
 
 
 @dataclass(frozen=True)
@@ -103,119 +121,152 @@ class _EmptyStack:
     tasks: tuple = ()
 
 
+def _kind(task: Any) -> str:
+    """Return PlaCo's task kind of an hqp task (the worker's ``kind``).
+
+    Raises:
+        InvalidInput: A task type PlaCo's mapping does not support.
+
+    """
+    for cls, kind in ((CoMTask, "com"), (PositionTask, "position"),
+                      (OrientationTask, "orientation"), (PostureTask, "joints")):
+        if isinstance(task, cls):
+            return kind
+    raise InvalidInput(f"PlacoController: no PlaCo mapping for {type(task).__name__}")
+
+
+def hierarchy_setup(robot: Robot, model: RobotModel, hierarchy: Hierarchy,
+                    config: PlacoConfig) -> tuple[dict[str, Any], list[str]]:
+    """Return the worker's ``setup`` request of a scenario's hierarchy, and its hard levels.
+
+    The mapping of the module docstring: soles as planar contacts, the first level hard when
+    it holds one task (not a posture) and ``config.hard_first``, every other task soft with its
+    weight (the posture with ``config.posture_weight``); centre of gravity and position tasks
+    with ``kp = kd = 0`` (their acceleration is sent at every step), orientation and posture
+    tasks with the hqp task's own gains.
+
+    Raises:
+        InvalidInput: A task type PlaCo's mapping does not support.
+
+    """
+    names = list(model.joint_names)
+    qdd_safe = None
+    if config.qdd_safe is not None:
+        qdd_safe = (braking_acceleration(robot, model) if config.qdd_safe == "hqp"
+                    else np.full(len(names), float(config.qdd_safe))).tolist()
+    contacts = [{"frame": robot.contact(name).frame, "name": f"{name}_frame",
+                 "length": 2.0 * robot.contact(name).half_length,
+                 "width": 2.0 * robot.contact(name).half_width,
+                 "mu": robot.contact(name).friction, "weight_moments": config.weight_moments}
+                for name in robot.feet]
+    tasks: list[dict[str, Any]] = []
+    hard_levels: list[str] = []
+    for k, (level, level_tasks) in enumerate(hierarchy.levels):
+        first = k == 0 and len(level_tasks) == 1 and _kind(level_tasks[0]) != "joints"
+        hard = first and config.hard_first
+        if hard:
+            hard_levels.append(level)
+        for task in level_tasks:
+            kind = _kind(task)
+            ref = task.reference  # type: ignore[attr-defined]
+            spec: dict[str, Any] = {
+                "name": task.name, "kind": kind, "frame": getattr(task, "frame", None),
+                "priority": "hard" if hard else "soft",
+                "weight": config.first_weight if first and not hard else task.weight,
+                "kp": 0.0, "kd": 0.0, "target": None, "mask": None}
+            goal = np.asarray(task.goal_at(0.0).position, dtype=float).tolist()
+            if kind == "com":
+                target: list[float | None] = [None, None, None]  # z: PlaCo's own height
+                target[: len(goal)] = goal
+                spec.update(target=target, mask="xy" if getattr(task, "horizontal") else None)
+            elif kind == "position":
+                spec["target"] = goal
+            elif kind == "orientation":
+                spec.update(target=goal, kp=ref.kp, kd=ref.kv)
+            else:
+                spec.update(target=dict(zip(getattr(task, "joints"), goal)), kp=ref.kp,
+                            kd=ref.kv, priority="soft", weight=config.posture_weight)
+            tasks.append(spec)
+    setup = {
+        "op": "setup", "urdf": str(robot.urdf_path), "ignore_collisions": False, "dt": DT,
+        "q": np.asarray(robot.q_standing, dtype=float).tolist(), "joints": names,
+        "q_lower": None, "q_upper": None, "tau_max": None, "qdd_safe": qdd_safe,
+        "v_max": (config.velocity_scale * model.v_max).tolist(),
+        "joint_limits": config.joint_limits, "velocity_limits": True, "torque_limits": True,
+        "contacts": contacts, "tasks": tasks,
+    }
+    return setup, hard_levels
+
+
 class PlacoController:
     """A PlaCo ``DynamicsSolver`` with the :class:`hqp.controller.Controller` step interface.
+
+    PlaCo runs in a worker process of its own environment (:mod:`hqp.bench.placo_worker`;
+    ``python -m hqp.bench.peer_env placo`` makes it); :meth:`close` stops it. Each step computes
+    the tasks' references on hqp's side (the hqp tasks' own PD laws at the measured state) and
+    sends them with the state; the worker solves and times its own step.
 
     Args:
         robot: The robot (its URDF is loaded by PlaCo).
         hierarchy: The scenario's levels of hqp tasks (centre of gravity,
-            position and posture tasks are supported).
+            position, orientation and posture tasks are supported).
+        config: How PlaCo is set up (default: its own configuration, :class:`PlacoConfig`).
+        python: PlaCo's interpreter (default: :func:`hqp.bench.peer_env.env_python`).
 
     Raises:
-        HQPError: A task type PlaCo's mapping does not support.
+        InvalidInput: A task type PlaCo's mapping does not support.
+        PeerUnavailable: PlaCo's environment is missing or cannot run the worker.
+        WorkerError: The worker could not set the robot up.
 
     """
 
     def __init__(self, robot: Robot, hierarchy: Hierarchy,
-                 config: PlacoConfig | None = None) -> None:
-        import placo
-
-        from hqp.errors import InvalidInput
-        from hqp.tasks.com import CoMTask
-        from hqp.tasks.orientation import OrientationTask
-        from hqp.tasks.position import PositionTask
-        from hqp.tasks.posture import PostureTask
-
+                 config: PlacoConfig | None = None, python: Path | None = None) -> None:
         self.dt = DT
         self.stack = _EmptyStack()
-        self.robot = placo.RobotWrapper(str(robot.urdf_path))
         self.model = robot.model()
         self.names = list(self.model.joint_names)
-        self.solver = placo.DynamicsSolver(self.robot)
-        self.solver.dt = DT
-        cfg = config or PlacoConfig()
-        self.config = cfg
-        self.solver.mask_fbase(False)
-        self.solver.enable_joint_limits(cfg.joint_limits)
-        self.solver.enable_velocity_limits(True)
-        self.solver.enable_torque_limits(True)
-        if cfg.qdd_safe is not None:
-            braking = (braking_acceleration(robot, self.model) if cfg.qdd_safe == "hqp"
-                       else np.full(len(self.names), float(cfg.qdd_safe)))
-            for name, qdd in zip(self.names, braking, strict=True):
-                self.solver.set_qdd_safe(name, float(qdd))
-        for name, vmax in zip(self.names, cfg.velocity_scale * self.model.v_max, strict=True):
-            self.robot.set_velocity_limit(name, float(vmax))
-        q = robot.q_standing
-        self._set_state(q, np.zeros(self.model.nv))
-        for name in robot.feet:
-            surface = robot.contact(name)
-            task = self.solver.add_frame_task(surface.frame, self.robot.get_T_world_frame(
-                surface.frame))
-            task.configure(f"{name}_frame", "hard", 1.0)
-            contact = self.solver.add_planar_contact(task)
-            contact.length = 2.0 * surface.half_length
-            contact.width = 2.0 * surface.half_width
-            contact.mu = surface.friction
-            contact.weight_moments = cfg.weight_moments
-        self._tracked: list[tuple[Any, Any, str]] = []  # (hqp task, placo task, kind)
-        for k, (level, tasks) in enumerate(hierarchy.levels):
-            first = k == 0 and len(tasks) == 1 and not isinstance(tasks[0], PostureTask)
-            hard = first and cfg.hard_first
+        self.config = config or PlacoConfig()
+        setup, self.hard_levels = hierarchy_setup(robot, self.model, hierarchy, self.config)
+        self._tracked: list[tuple[Any, str]] = []  # (hqp task, kind) sent at every step
+        self._posture: dict[str, tuple[Any, np.ndarray]] = {}  # name: (hqp task, goal sent)
+        for _, tasks in hierarchy.levels:
             for task in tasks:
-                weight = cfg.first_weight if first and not hard else task.weight
-                ref = task.reference  # type: ignore[attr-defined]
-                if isinstance(task, CoMTask):
-                    goal = np.zeros(3)
-                    goal[: task.goal_size] = task.goal_at(0.0).position
-                    goal[2] = self.robot.com_world()[2]
-                    pt = self.solver.add_com_task(goal)
-                    if task.horizontal:
-                        pt.mask.set_axises("xy")
-                    kind = "com"
-                elif isinstance(task, PositionTask):
-                    pt = self.solver.add_position_task(task.frame, task.goal_at(0.0).position)
-                    kind = "position"
-                elif isinstance(task, OrientationTask):
-                    pt = self.solver.add_orientation_task(task.frame, task.goal_at(0.0).position)
-                    pt.kp, pt.kd = ref.kp, ref.kv
-                    pt.configure(task.name, "hard" if hard else "soft", weight)
-                    self._tracked.append((task, pt, "orientation"))
-                    continue
-                elif isinstance(task, PostureTask):
-                    pt = self.solver.add_joints_task()
-                    goal = task.goal_at(0.0).position
-                    pt.set_joints(dict(zip(task.joints, goal)))  # type: ignore[attr-defined]
-                    pt.kp, pt.kd = ref.kp, ref.kv
-                    pt.configure(task.name, "soft", cfg.posture_weight)
-                    continue
+                kind = _kind(task)
+                if kind == "joints":
+                    self._posture[task.name] = (task, np.array(task.goal_at(0.0).position))
                 else:
-                    raise InvalidInput(
-                        f"PlacoController: no PlaCo mapping for {type(task).__name__}"
-                    )
-                pt.kp, pt.kd = 0.0, 0.0
-                pt.configure(task.name, "hard" if hard else "soft", weight)
-                self._tracked.append((task, pt, kind))
-        self.hard_levels = [lv for k, (lv, ts) in enumerate(hierarchy.levels)
-                            if cfg.hard_first and k == 0 and len(ts) == 1
-                            and not isinstance(ts[0], PostureTask)]
+                    self._tracked.append((task, kind))
+        self.worker = start("placo", WORKER, python)
+        try:
+            info = self.worker.request(setup)
+        except Exception:
+            self.worker.close()
+            raise
+        self.placo_version: str = info["placo_version"]
+        self.pinocchio_version: str = info["pinocchio_version"]
+        self.step_time: list[float] = []
+        """Each step's own time [s]: references on hqp's side plus PlaCo's step in the worker
+        (the pipe not counted)."""
+        self.placo_time: list[float] = []
+        """Wall-clock time of PlaCo's step in the worker [s]."""
 
-    def _set_state(self, q: np.ndarray, v: np.ndarray) -> None:
-        """Copy an hqp state (pinocchio convention, same URDF) into PlaCo's robot."""
-        self.robot.state.q = np.array(q)
-        self.robot.state.qd = np.array(v)
-        self.robot.update_kinematics()
+    def references(self, state: Any, t: float) -> dict[str, Any]:
+        """Return the tasks' references at the measured state (the worker's ``refs``).
 
-    def step(self, state: Any, t: float) -> Command:
-        """One control step: set PlaCo's state and references, solve, return torques."""
-        w0 = time.perf_counter()
-        self._set_state(state.q, state.v)
+        Centre of gravity and position tasks: the hqp task's own reference acceleration
+        (eq. 27-28, both saturations), PlaCo's ``ddtarget_world`` with ``kp = kd = 0``;
+        orientation tasks: the goal's rotation and angular velocity (PlaCo's PD, without
+        saturation); posture tasks: their goal, when it changed (``screwgun`` switches it to
+        the work pose). The model is updated at ``state`` first.
+        """
         self.model.update(state.q, state.v)
-        for task, pt, kind in self._tracked:
+        refs: dict[str, Any] = {}
+        for task, kind in self._tracked:
             sample = task.goal_at(t)
             if kind == "orientation":  # plain PD towards the (moving) goal, no saturation
-                pt.R_world_frame = sample.position
-                pt.omega_world = sample.velocity
+                refs[task.name] = {"R": np.asarray(sample.position).tolist(),
+                                   "omega": np.asarray(sample.velocity).tolist()}
                 continue
             if kind == "com":
                 m = task.goal_size
@@ -226,25 +277,46 @@ class PlacoController:
             acc = np.zeros(3)
             acc[: x.size] = task.reference(x, xd, sample.position, sample.velocity,
                                            sample.acceleration)
-            pt.ddtarget_world = acc  # kp = kd = 0: PlaCo's task acceleration is exactly this
-        result = self.solver.solve(False)
-        if result.success:  # (tau_dict of a failed solve crashes placo 0.10.2)
-            tau_dict = result.tau_dict(self.robot)
-            tau = np.array([tau_dict[n] for n in self.names])
-            qdd = np.array(result.qdd)
-        else:
-            tau = np.zeros(len(self.names))
-            qdd = np.zeros(self.model.nv)
+            refs[task.name] = {"acceleration": acc.tolist()}
+        for name, (task, sent) in self._posture.items():
+            goal = np.asarray(task.goal_at(t).position)
+            if not np.array_equal(goal, sent):
+                refs[name] = {"joints": dict(zip(getattr(task, "joints"), goal.tolist()))}
+                self._posture[name] = (task, goal.copy())
+        return refs
+
+    def step(self, state: Any, t: float) -> Command:
+        """One control step: references, then PlaCo's state, references and solve (worker)."""
+        w0 = time.perf_counter()
+        refs = self.references(state, t)
         w1 = time.perf_counter()
+        reply = self.worker.request({"op": "step", "q": np.asarray(state.q).tolist(),
+                                     "v": np.asarray(state.v).tolist(), "refs": refs})
+        success = bool(reply["success"])
+        self.placo_time.append(float(reply["wall_s"]))
+        self.step_time.append(w1 - w0 + float(reply["wall_s"]))
         return Command(
-            tau=tau,
-            qdd=qdd,
+            tau=np.asarray(reply["tau"]),
+            qdd=np.asarray(reply["qdd"]),
             wrenches={},
-            report=FeasibilityReport(notes=() if result.success else ("placo: solve failed",)),
-            safe_mode=not result.success,
-            timings={"total": w1 - w0},
+            report=FeasibilityReport(notes=() if success else ("placo: solve failed",)),
+            safe_mode=not success,
+            timings={"total": self.step_time[-1], "placo": float(reply["wall_s"])},
             t=t,
         )
+
+    def metrics(self) -> dict[str, float | str | None]:
+        """Return the worker's figures of the run: PlaCo's own step, the pipe's round trip [ms]."""
+        def median_ms(xs: list[float]) -> float | None:
+            return round(1e3 * float(np.median(xs)), 4) if xs else None
+
+        return {"placo_step_median_ms": median_ms(self.placo_time),
+                "round_trip_median_ms": median_ms(self.worker.round_trip[2:]),
+                "placo_version": self.placo_version}
+
+    def close(self) -> None:
+        """Stop the worker."""
+        self.worker.close()
 
 
 def placo_note(controller: PlacoController, hierarchy: Hierarchy) -> str:

@@ -70,8 +70,14 @@ def format_table(result: ScenarioResult, wide: bool = False) -> str:
 
     At most :data:`WIDTH` characters wide unless ``wide`` (the last line then names the
     columns left out); one number format per column (:func:`hqp.tables.column_format`).
+    Controllers not run (a peer without its environment) follow, with why.
     """
-    return format_rows(result.scenario, result.robot, [r.row() for r in result.runs], wide)
+    table = format_rows(result.scenario, result.robot, [r.row() for r in result.runs], wide)
+    skipped = [f"skipped ({s['controller']}, {', '.join(s['hierarchies'])}): {s['skipped']}"
+               for s in result.skipped]
+    if not wide:
+        skipped = [textwrap.fill(n, WIDTH, subsequent_indent="  ") for n in skipped]
+    return "\n".join([table, *skipped])
 
 
 def format_rows(scenario: str, robot: str, rows: list[dict[str, Any]],

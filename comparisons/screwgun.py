@@ -170,8 +170,8 @@ class Screwgun(Scenario):
         def wrap(controller: Any) -> Any:
             return PostureSwitch(controller, posture, work)
 
-        log, note, support = run_controller(spec.controller, rob, model, hierarchy, duration,
-                                            progress, wrap=wrap, contacts=self.contacts)
+        log, note, support, own = run_controller(spec.controller, rob, model, hierarchy, duration,
+                                                 progress, wrap=wrap, contacts=self.contacts)
         if spec.controller == "nullspace":
             note += "; it skips the internal-force rows (they act on contact forces)"
         if spec.controller == "placo":
@@ -181,7 +181,7 @@ class Screwgun(Scenario):
         trace = trace_from_log(rob, log, feet[:2], hand_frame=hand_frame, hand_goal=goal,
                                support=support)
         metrics = self.metrics(trace)
-        return RunResult(spec, metrics, trace, self.panels(trace), note)
+        return RunResult(spec, {**metrics, **own}, trace, self.panels(trace), note)
 
     @staticmethod
     def metrics(trace: Trace) -> dict[str, float]:

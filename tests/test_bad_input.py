@@ -323,22 +323,7 @@ def test_the_bench_table_fits_100_columns(capsys):
 
 # -- what a newcomer sees: no library noise ---------------------------------------------------
 
-def test_placo_s_warnings_on_stderr_are_logged_at_debug_level(capfd, caplog):
-    import logging
-
-    import placo
-
-    from hqp.behaviors.planners import placo_stderr_to_log
-
-    urdf = robots.load("g1").urdf_path.read_text()
-    with caplog.at_level(logging.DEBUG, logger="hqp.behaviors.planners"):
-        with placo_stderr_to_log():
-            placo.HumanoidRobot("", 0, urdf)
-    assert "Can't find trunk frames" not in capfd.readouterr().err
-    assert any("Can't find trunk frames" in r.getMessage() for r in caplog.records)
-
-
-def test_hqp_run_walk_on_g1_prints_no_placo_warning(capfd):
+def test_hqp_run_walk_on_g1_prints_no_warning(capfd):
     assert main(["run", "walk", "--robot", "g1", "--duration", "0.01"]) == 0
     captured = capfd.readouterr()
     assert "WARNING" not in captured.err and "behavior walk on g1" in captured.out

@@ -110,9 +110,10 @@ def test_bench_end_to_end():
         assert BENCH_ROW_KEYS <= set(row), BENCH_ROW_KEYS - set(row)
         assert isinstance(row["robot"], str) and row["median_ms"] > 0
     assert any(r["solver"].startswith("hqp/") for r in result["rows"])
-    # a configuration this machine cannot run (TSID without its environment) is not a row
+    # a configuration this machine cannot run (a peer without its environment) is not a row
     for entry in result["skipped"]:
-        assert entry["solver"] == "tsid" and "python -m hqp.bench.tsid_env" in entry["skipped"]
+        assert entry["solver"] in ("placo", "tsid"), entry
+        assert f"python -m hqp.bench.peer_env {entry['solver']}" in entry["skipped"]
 
 
 def test_behaviors_lists_the_library(capsys):

@@ -124,7 +124,8 @@ def test_the_report_gives_the_weak_directions_of_the_task_level(native):
 
 
 def test_a_native_step_with_the_filter_allocates_nothing():
-    from hqp._core import _ext_checked
+    from conftest import checked_core
+    _ext_checked = checked_core()
 
     robot, ctrl = _reaching()
     ctrl.stack.set_weak_threshold(Category.OPERATIONAL, THRESHOLD)

@@ -304,7 +304,8 @@ def test_native_law_levels_are_the_python_levels():
 
 
 def _checked_law(name, zones=True):
-    from hqp._core import _ext_checked
+    from conftest import checked_core
+    _ext_checked = checked_core()
 
     robot = robots.load(name)
     ctrl = standing_nullspace_controller(robot, joint_limit_zones=zones)

@@ -220,7 +220,8 @@ def test_controller_suite_row_of_the_native_core_is_the_native_step():
 
 
 def _checked_mirror(name):
-    from hqp._core import _ext_checked
+    from conftest import checked_core
+    _ext_checked = checked_core()
 
     robot, ctrl = _standing(name)
     mirror = NativeStepMirror(robot, ctrl, core=_ext_checked)
@@ -251,7 +252,8 @@ def test_a_native_step_with_the_torque_rate_level_allocates_nothing():
     """The torque-rate kernel under Eigen's run-time check: steps alternating between two
     states whose torques differ by more than the level lets one step change them (the level
     binding every step, the bounds pushed down before each step) make no heap allocation."""
-    from hqp._core import _ext_checked
+    from conftest import checked_core
+    _ext_checked = checked_core()
 
     robot = robots.load("g1")
     ctrl = standing_controller(robot, backend="daqp", max_torque_rate=MAX_TORQUE_RATE)

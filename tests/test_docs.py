@@ -88,12 +88,6 @@ NOT_RUN = {
 }
 """Command prefixes not run here, and why."""
 
-def _needs_placo(command: str) -> bool:
-    """A comparison with its default controllers (PlaCo among them), or the walk's planner."""
-    return (command.startswith("hqp compare") and "--controllers" not in command) \
-        or command.startswith("hqp run walk")
-
-
 def _commands() -> list[tuple[str, str]]:
     commands = []
     for page in PAGES:
@@ -112,14 +106,6 @@ def test_the_pages_show_commands():
     assert len(COMMANDS) >= 15
     assert all(any(c.startswith(p) for _, c in COMMANDS) for p in NOT_RUN), \
         "a NOT_RUN entry no page shows any more"
-
-
-def _placo_missing() -> bool:
-    try:
-        import placo  # noqa: F401
-    except ImportError:
-        return True
-    return False
 
 
 def _toml_files(folder: Path) -> None:
@@ -141,8 +127,6 @@ def test_a_command_of_the_pages_exits_0(page, command, tmp_path):
     skip = next((why for prefix, why in NOT_RUN.items() if command.startswith(prefix)), None)
     if skip:
         pytest.skip(f"not run: {skip}")
-    if _needs_placo(command) and _placo_missing():
-        pytest.skip("PlaCo is not installed in this environment")
     _toml_files(tmp_path)
     argv = shlex.split(command.replace("OMP_NUM_THREADS=1 ", ""))
     hqp = [sys.executable, "-m", "hqp.cli"]

@@ -448,23 +448,6 @@ def test_erd_generated_urdf_equals_source(name: str) -> None:
             )
 
 
-@pytest.mark.parametrize("name", ROBOTS)
-def test_placo_loads_the_urdf(name: str) -> None:
-    placo = pytest.importorskip("placo")
-    robot = hqp.robots.load(name)
-    humanoid = placo.HumanoidRobot(str(robot.urdf_path))
-    humanoid.state.q = np.array(robot.q_standing)
-    humanoid.update_kinematics()
-    model = robot.model()
-    model.update(robot.q_standing, np.zeros(model.nv))
-    for frame in ("trunk", "left_foot", "right_foot"):
-        np.testing.assert_allclose(
-            humanoid.get_T_world_frame(frame), model.frame_placement(frame).homogeneous,
-            atol=1e-9,
-        )
-    np.testing.assert_allclose(humanoid.com_world(), model.com, atol=1e-9)
-
-
 def test_generated_files_follow_the_installation(tmp_path, monkeypatch):
     # Two environments with the same example-robot-data share the generated-files directory;
     # the MJCF names the meshes by absolute path, so each installation gets its own files

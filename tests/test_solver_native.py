@@ -89,7 +89,8 @@ def _as_rows(levels, n):
 
 def test_warm_solve_allocates_nothing_on_the_heap():
     """Eigen's run-time check (the _ext_checked build): a warm solve makes no allocation."""
-    from hqp._core import _ext_checked
+    from conftest import checked_core
+    _ext_checked = checked_core()
 
     assert _ext_checked.malloc_checked
     # every source, the degenerate vertices of reach and screwgun (non-negative least
@@ -185,7 +186,8 @@ def test_nnls_early_exit_answers_the_feasibility_question():
 
 def test_the_allocation_check_can_fail():
     """A solve of new shapes must allocate: the checked build reports it."""
-    from hqp._core import _ext_checked
+    from conftest import checked_core
+    _ext_checked = checked_core()
 
     step = STEPS[0]
     rows = _as_rows(step.levels, step.n)

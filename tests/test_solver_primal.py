@@ -142,7 +142,8 @@ def test_the_recorded_thin_level_qps_are_solved_exactly(qp):
 def test_the_primal_qp_allocates_nothing():
     """Eigen's run-time check (the _ext_checked build) around a solve that changes its
     working set many times."""
-    from hqp._core import _ext_checked
+    from conftest import checked_core
+    _ext_checked = checked_core()
 
     assert _ext_checked.malloc_checked
     name, H, g, C, lo, up = _thin_qps()[0]

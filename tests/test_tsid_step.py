@@ -1,27 +1,22 @@
-"""TSID's worker (``hqp/bench/tsid_worker.py``), its client and its environment.
+"""TSID's worker (``hqp/bench/tsid_worker.py``), the peers' pipe client and their environments.
 
 The protocol is tested with the worker run by hqp's own interpreter, ``tsid`` replaced by an
-empty module (TSID cannot be installed beside hqp): requests, error replies, quitting, a dead
-worker. The live TSID step runs only where its environment exists
-(``python -m hqp.bench.tsid_env``).
+empty module (TSID's wheel cannot be installed beside hqp): requests, error replies, quitting,
+a dead worker. The live TSID step runs only where its environment exists
+(``python -m hqp.bench.peer_env tsid``).
 """
 
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
 
-from hqp.bench import tsid_env
-from hqp.bench.tsid_step import (
-    WORKER,
-    TsidStanding,
-    TsidUnavailable,
-    Worker,
-    WorkerError,
-    setup_message,
-)
+from hqp.bench import peer_env
+from hqp.bench.tsid_step import WORKER, TsidStanding, setup_message
+from hqp.bench.worker import PeerUnavailable, Worker, WorkerError, start
 from hqp.robots import load
 
 FAKE_TSID = ("import runpy, sys, types\n"
@@ -39,6 +34,7 @@ def fake_worker():
 
 
 def test_worker_protocol_replies_and_errors(fake_worker):
+    assert fake_worker.request({"op": "hello"}) == {"ok": True}
     with pytest.raises(WorkerError, match="step before setup"):
         fake_worker.request({"op": "step", "q": [0.0], "v": [0.0]})
     with pytest.raises(WorkerError, match="unknown op 'jump'"):
@@ -73,20 +69,29 @@ def test_setup_message_carries_the_standing_task_set():
 
 
 def test_a_missing_environment_says_how_to_make_it(tmp_path):
-    reason = tsid_env.usable(tmp_path / "none")
-    assert reason is not None and "python -m hqp.bench.tsid_env" in reason
-    with pytest.raises(TsidUnavailable, match="python -m hqp.bench.tsid_env"):
+    reason = peer_env.usable("tsid", tmp_path / "none")
+    assert reason is not None and "python -m hqp.bench.peer_env tsid" in reason
+    with pytest.raises(PeerUnavailable, match="python -m hqp.bench.peer_env tsid"):
         TsidStanding(load("g1"), python=tmp_path / "none" / "bin" / "python")
+
+
+def test_an_environment_that_cannot_run_the_worker_is_unavailable(tmp_path):
+    """A worker that dies before answering ``hello`` (its environment lacks the peer): the
+    peer is unavailable, and the message says how to re-create the environment."""
+    script = tmp_path / "worker.py"
+    script.write_text("import sys\nsys.exit('ModuleNotFoundError: no peer here')\n")
+    with pytest.raises(PeerUnavailable, match="no peer here.*python -m hqp.bench.peer_env tsid"):
+        start("tsid", script, python=Path(sys.executable))
 
 
 def test_env_dir_follows_the_variable(monkeypatch, tmp_path):
     monkeypatch.setenv("HQP_TSID_ENV", str(tmp_path / "env"))
-    assert tsid_env.env_dir() == tmp_path / "env"
-    assert tsid_env.env_python() == tmp_path / "env" / "bin" / "python"
+    assert peer_env.env_dir("tsid") == tmp_path / "env"
+    assert peer_env.env_python("tsid") == tmp_path / "env" / "bin" / "python"
 
 
-@pytest.mark.skipif(tsid_env.usable() is not None,
-                    reason="TSID's environment is absent (python -m hqp.bench.tsid_env)")
+@pytest.mark.skipif(peer_env.usable("tsid") is not None,
+                    reason="TSID's environment is absent (python -m hqp.bench.peer_env tsid)")
 def test_live_tsid_holds_the_standing_configuration():
     """At rest on both feet, TSID's torques make the contact wrenches carry the weight."""
     robot = load("g1")

@@ -8,6 +8,11 @@ papers' rigid feet) instead of MuJoCo's unilateral contacts; every run carries
 the JSON sections, alone) goes to stdout; progress goes to stderr. With
 ``--all --json`` stdout holds one object
 ``{"scenarios": [<one contract object per scenario>]}``.
+
+PlaCo (``placo``) runs in an environment of its own (:mod:`hqp.bench.peer_env`): the first
+``hqp compare`` that runs it makes that environment (one line on stderr says so, and how long
+it took), unless ``HQP_NO_PEER_INSTALL=1``; when it cannot be made (offline), PlaCo's runs are
+listed under ``"skipped"`` (JSON) or below the table, with the command that adds it.
 """
 
 from __future__ import annotations
@@ -21,6 +26,7 @@ from typing import Any, TextIO
 from comparisons import CONTROLLERS, SCENARIOS, get_scenario
 from comparisons.report import format_table, write_plots
 from hqp.app.console import fallback_note, stdout_to_stderr
+from hqp.bench import peer_env
 from hqp.errors import InvalidInput
 from hqp.sim.simulator import CONTACT_MODES
 from hqp.solver.qp import last_resort_count
@@ -102,6 +108,13 @@ def _run(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     def progress(message: str) -> None:
         print(message, file=err, flush=True)
 
+    unavailable: dict[str, str] = {}
+    for name in peer_env.PEERS:
+        wanted = args.controllers is None or name in args.controllers
+        if wanted and any(name in s.controllers for s in scenarios):
+            reason = peer_env.ensure(name, notice=err)
+            if reason is not None:
+                unavailable[name] = reason
     results = []
     for scenario in scenarios:
         fallbacks = last_resort_count()
@@ -111,6 +124,7 @@ def _run(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
             duration=args.duration,
             progress=progress,
             contacts=getattr(args, "contacts", CONTACT_MODES[0]),
+            unavailable=unavailable,
         )
         results.append(result)
         if args.plot:

@@ -160,7 +160,7 @@ class _Meter:
                                ("errors", self.behavior.task_errors())):
                 self.trace[key].append(value)
         planner = self.behavior.planner
-        if planner is not None and planner.trajectory is not None:
+        if planner is not None and planner.planned:
             if planner.output("started", step.t) and not planner.output("done", step.t):
                 com = planner.output("com", step.t)
                 err = float(np.linalg.norm(self.model.com[:2] - com[:2]))

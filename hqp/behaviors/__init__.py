@@ -8,6 +8,10 @@
 * Behavior description files (TOML, :func:`load_behavior`), and the bundled library
   (:func:`library_names`): ``stand``, ``reach``, ``mimic``, ``screwgun``, ``squat-jump``,
   ``walk``.
+* The walk planner (:class:`~hqp.behaviors.planners.WalkPlanner`, ``[planner] type = "walk"``):
+  naive footsteps at the robot's own foot spacing, single and double supports, and the
+  centre of mass by ZMP preview control of the cart-table model
+  (:mod:`hqp.behaviors.lipm`), as ``plan.*`` values.
 * :func:`~hqp.behaviors.setup.prepare`: a behavior loaded for a robot, on a controller of
   its own, ready to be driven like a controller (:meth:`Behavior.step`).
 

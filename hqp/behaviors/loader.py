@@ -23,6 +23,7 @@ import tomllib
 
 from hqp.behaviors.expressions import Expression, ExpressionError, parse
 from hqp.behaviors.planners import OUTPUT_NAMES as WALK_OUTPUTS
+from hqp.behaviors.planners import PLANNER_TYPES as WALK_TYPES
 from hqp.behaviors.schema import SCHEMAS, TaskSchema
 from hqp.behaviors.spec import (
     ActionPrimitive,
@@ -53,8 +54,9 @@ GOAL_NAMES = SENSED_NAMES | {"initial", "standing", "pose"}
 began (``initial``), the robot's standing configuration (``standing``) and the captured
 poses of the file (``pose.<name>``: the standing configuration with the pose's joints)."""
 
-PLANNER_OUTPUTS: dict[str, frozenset[str]] = {"placo_walk": frozenset(WALK_OUTPUTS)}
-"""Planner types and the ``plan.<name>`` values each provides."""
+PLANNER_OUTPUTS: dict[str, frozenset[str]] = {name: frozenset(WALK_OUTPUTS) for name in WALK_TYPES}
+"""Planner types and the ``plan.<name>`` values each provides (``placo_walk``: an alias of
+``walk``, the type's name when PlaCo planned the walk)."""
 
 _LEVEL_NAMES = {c.name.lower(): c for c in Category}
 _TOP = {"behavior", "inputs", "tasks", "actions", "phases", "planner", "contacts", "poses"}
@@ -188,7 +190,7 @@ def parse_behavior(
                         joint_braking ("contacts" or "airborne"),
                         [[phases.NAME.transitions]] to, when
         [poses.NAME]    joint = position [rad], ...   -> pose.NAME (captured poses)
-        [planner]       type = "placo_walk", then the planner's parameters -> plan.*
+        [planner]       type = "walk", then the planner's parameters -> plan.*
     """
     ctx = _Ctx(path, text)
     try:

@@ -20,7 +20,7 @@ from hqp.behaviors.expressions import ExpressionError, Namespace
 from hqp.behaviors.factory import TaskFactory
 from hqp.behaviors.inputs import InputStream
 from hqp.behaviors.loader import file_error, load_behavior
-from hqp.behaviors.planners import PlacoWalkPlanner
+from hqp.behaviors.planners import WalkPlanner
 from hqp.behaviors.spec import BehaviorSpec, InputSpec
 from hqp.control.presets import constraint_controller
 from hqp.control.servo import MAX_TORQUE_RATE
@@ -206,9 +206,9 @@ def prepare(
     planner = None
     if spec.planner is not None:
         surface = robot_obj.contact(robot_obj.feet[0])
-        planner = PlacoWalkPlanner(robot_obj.urdf_path, spec.planner.params,
-                                   foot_length=2 * surface.half_length,
-                                   foot_width=2 * surface.half_width, where=str(path))
+        planner = WalkPlanner(spec.planner.params, feet=robot_obj.feet,
+                              foot_length=2 * surface.half_length,
+                              foot_width=2 * surface.half_width, where=str(path))
     behavior = Behavior(spec, ctrl, factory, inputs=stream, planner=planner,
                         standing=robot_obj.q_standing)
     _check_for_controller(spec, behavior, ctrl, factory)

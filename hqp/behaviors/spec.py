@@ -154,10 +154,10 @@ class PhaseSpec:
 
 @dataclass(frozen=True)
 class PlannerSpec:
-    """A trajectory generator feeding ``plan.*`` names (e.g. PlaCo's walk planners).
+    """A trajectory generator feeding ``plan.*`` names (e.g. the walk planner).
 
     Attributes:
-        type: Planner type (``"placo_walk"``).
+        type: Planner type (``"walk"``; ``"placo_walk"`` is an alias).
         params: Its parameters.
 
     """

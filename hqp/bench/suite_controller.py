@@ -13,13 +13,16 @@ Per robot (``paper-humanoid``, ``g1``, ``talos``), the same states are handed to
 - ``nullspace``: :func:`hqp.control.presets.standing_nullspace_controller` (same stack, joint limits
   as the papers' activation zones; inequalities not enforced);
 - ``placo``: PlaCo's ``DynamicsSolver`` on the same task set (:mod:`hqp.bench.placo_step`);
-- ``tsid``: TSID's ``InverseDynamicsFormulationAccForce`` on the same task set, in a worker
-  process of TSID's own environment (:mod:`hqp.bench.tsid_step`; ``python -m
-  hqp.bench.tsid_env`` creates it). Its calls are interleaved with the others' in the same
-  rounds; its times are those the worker measures around its own step (the pipe's round trip
-  is reported apart, ``round_trip_median_ms``); the row carries ``tsid_version`` and
-  ``pinocchio_version``. Without the environment the row says so (``skipped``) and has no
-  times.
+- ``tsid``: TSID's ``InverseDynamicsFormulationAccForce`` on the same task set
+  (:mod:`hqp.bench.tsid_step`).
+
+PlaCo and TSID run in worker processes of their own environments (``python -m
+hqp.bench.peer_env placo`` / ``tsid`` makes them; :mod:`hqp.bench.worker`). Their calls are
+interleaved with the others' in the same rounds; their times are those the worker measures
+around its own step (the pipe's round trip is reported apart, ``round_trip_median_ms``); the
+row carries the peer's version (``placo_version``, ``tsid_version``), ``pinocchio_version``
+and ``solve_failures``. Without its environment a peer's row says so (``skipped``, with the
+command that makes it) and has no times.
 
 A unit of work is one full control step: model update, task rows, solve (and for hqp and the
 law, torques and the feasibility report). States: the ``(q, v)`` of the recorded ``stand``
@@ -47,7 +50,8 @@ from hqp.bench.accuracy import ExcessTracker, level_costs
 from hqp.bench.interleave import Samples, interleaved
 from hqp.bench.placo_step import PlacoStanding
 from hqp.bench.recorded import DATA_DIR, load
-from hqp.bench.tsid_step import TsidStanding, TsidUnavailable
+from hqp.bench.tsid_step import TsidStanding
+from hqp.bench.worker import PeerUnavailable
 from hqp.control.presets import standing_controller, standing_nullspace_controller
 from hqp.model import RobotState
 from hqp.robots import load as load_robot
@@ -72,6 +76,9 @@ T0 = 1.0
 
 TSID = "tsid"
 """TSID's row (the contract's name)."""
+
+PLACO = "placo"
+"""PlaCo's row (the contract's name)."""
 
 SLOW_SECONDS = 0.25
 """A configuration taking more CPU time than this per step (median of a probe pass over the
@@ -117,12 +124,10 @@ class _Stepper:
         self.phases: list[dict[str, float]] = []
         self.levels: list[list[float]] = []
         self.record = False
-        self.tsid: TsidStanding | None = None
-        if name == TSID:
-            self.tsid = TsidStanding(robot, dt)
-            self.ctrl = None
-        elif name == "placo":
-            self.placo = PlacoStanding(robot, dt)
+        self.peer: TsidStanding | PlacoStanding | None = None
+        """A peer's client (its worker times its own steps)."""
+        if name in (TSID, PLACO):
+            self.peer = TsidStanding(robot, dt) if name == TSID else PlacoStanding(robot, dt)
             self.ctrl = None
         elif name == NATIVE_STEP:
             self.ctrl = standing_controller(robot, dt=dt, diagnostics="residuals",
@@ -140,10 +145,9 @@ class _Stepper:
         q, v = self.states[self.i % len(self.states)]
         t = T0 + self.i * self.dt
         self.i += 1
-        if self.tsid is not None:
-            return self.tsid.step(q, v)
-        if self.ctrl is None:
-            return self.placo.step(q, v)
+        if self.peer is not None:
+            return self.peer.step(q, v)
+        assert self.ctrl is not None
         cmd = self.ctrl.step(RobotState(q, v, t), t)
         if self.record:
             self.phases.append(dict(cmd.timings))
@@ -261,25 +265,25 @@ def run_robot(robot_name: str, names: Sequence[str], *, quick: bool = False,
     for name in names:
         try:
             steppers[name] = _Stepper(name, robot, sts)
-        except TsidUnavailable as exc:
+        except PeerUnavailable as exc:
             skipped[name] = str(exc)
             if progress is not None:
-                progress(f"controller: {robot_name}: tsid skipped: {exc}")
+                progress(f"controller: {robot_name}: {name} skipped: {exc}")
         except Exception as exc:  # noqa: BLE001 - an unavailable configuration is reported
             failed[name] = f"{type(exc).__name__}: {exc}"
     try:
         return _measure(robot_name, names, steppers, sts, failed, skipped, quick, progress)
     finally:
         for st in steppers.values():
-            if st.tsid is not None:
-                st.tsid.close()
+            if st.peer is not None:
+                st.peer.close()
 
 
 def _worker_samples(st: _Stepper, timed: Samples) -> Samples:
-    """Return the worker's own times of the last timed calls of a worker configuration."""
-    assert st.tsid is not None
+    """Return the worker's own times of the last timed calls of a peer's configuration."""
+    assert st.peer is not None
     n = timed.samples.size
-    return Samples(np.asarray(st.tsid.wall[-n:]), timed.settled, np.asarray(st.tsid.cpu[-n:]))
+    return Samples(np.asarray(st.peer.wall[-n:]), timed.settled, np.asarray(st.peer.cpu[-n:]))
 
 
 def _measure(robot_name: str, names: Sequence[str], steppers: dict[str, _Stepper],
@@ -294,10 +298,10 @@ def _measure(robot_name: str, names: Sequence[str], steppers: dict[str, _Stepper
     fns = {n: st for n, st in steppers.items() if n not in slow}
     settings = dict(warmup=2, batch=2, min_samples=4, max_seconds=3.0) if quick else dict(
         warmup=2 * len(sts), batch=len(sts), min_samples=80, max_seconds=45.0)
-    timings = interleaved(fns, **settings)  # type: ignore[arg-type]
+    timings = interleaved(fns, **settings) if fns else {}  # type: ignore[arg-type]
     round_trip: dict[str, Samples] = {}
     for name, st in steppers.items():
-        if st.tsid is not None and name in timings:
+        if st.peer is not None and name in timings:
             round_trip[name] = timings[name]
             timings[name] = _worker_samples(st, timings[name])
     ex, contract_excess = _accuracy(steppers, sts)
@@ -321,11 +325,11 @@ def _measure(robot_name: str, names: Sequence[str], steppers: dict[str, _Stepper
             continue
         _measured(row, steppers[name], timings[name] if name in timings else probe[name],
                   name in slow)
-        worker = steppers[name].tsid
-        if worker is not None:
-            row.update(tsid_version=worker.tsid_version,
-                       pinocchio_version=worker.pinocchio_version,
-                       solve_failures=worker.failures)
+        peer = steppers[name].peer
+        if peer is not None:
+            row[f"{name}_version"] = (peer.tsid_version if isinstance(peer, TsidStanding)
+                                      else peer.placo_version)
+            row.update(pinocchio_version=peer.pinocchio_version, solve_failures=peer.failures)
             if name in round_trip:
                 row["round_trip_median_ms"] = round(round_trip[name].median_ms, 4)
         if name in ex:

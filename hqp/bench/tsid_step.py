@@ -1,10 +1,11 @@
 """TSID's control step on the standing task set, for the controller suite (a worker process).
 
 :class:`TsidStanding` starts :mod:`hqp.bench.tsid_worker` with the interpreter of TSID's own
-environment (:mod:`hqp.bench.tsid_env`), sends it the robot (URDF, standing configuration,
-soles, limits, the standing controllers' gains) and then one request per control step. The
-worker times its own step (TSID's problem data, solve, torques), so the suite's ``tsid`` row
-does not count the pipe; the round trip is kept apart (:attr:`TsidStanding.round_trip`).
+environment (``python -m hqp.bench.peer_env tsid`` makes it; :func:`hqp.bench.worker.start`),
+sends it the robot (URDF, standing configuration, soles, limits, the standing controllers'
+gains) and then one request per control step. The worker times its own step (TSID's problem
+data, solve, torques), so the suite's ``tsid`` row does not count the pipe; the round trip is
+kept apart (``worker.round_trip``).
 
 Same task set as :func:`hqp.control.presets.standing_controller` where TSID can express it:
 soles as rigid ``Contact6d`` (friction 0.8 x the sole's, normal force at least 0, corners
@@ -19,16 +20,12 @@ the posture, and the posture has one weight for all its joints.
 
 from __future__ import annotations
 
-import json
-import os
-import subprocess
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from hqp.bench.tsid_env import env_python, usable
-from hqp.errors import HQPError
+from hqp.bench.worker import start
 from hqp.robots import Robot
 from hqp.tasks.joint_limits import max_acceleration_from_torques
 
@@ -39,18 +36,6 @@ GAINS = {"com": 100.0, "trunk": 100.0, "posture": 50.0, "contact": 0.0}
 """Stiffness of the tasks [1/s^2] (critically damped in the worker), as the standing controllers."""
 WEIGHTS = {"com": 1.0, "trunk": 1.0, "posture": 1e-2, "force_regularization": 1e-5}
 """Weights of TSID's level-1 tasks, and of its contact-force regularisation."""
-
-
-THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
-"""Set to 1 in the worker's environment: one thread, as every configuration of the suite."""
-
-
-class TsidUnavailable(HQPError):
-    """TSID's environment is missing or broken (the message says how to create it)."""
-
-
-class WorkerError(HQPError):
-    """The worker answered a request with an error, or died."""
 
 
 def setup_message(robot: Robot, dt: float = 1e-3) -> dict[str, Any]:
@@ -82,81 +67,25 @@ def setup_message(robot: Robot, dt: float = 1e-3) -> dict[str, Any]:
     }
 
 
-class Worker:
-    """A worker process speaking the JSON-lines protocol of :mod:`hqp.bench.tsid_worker`.
-
-    Args:
-        command: The worker's command line (interpreter and script).
-        cwd: Its working directory (not the project's: TSID's interpreter must not see hqp).
-
-    """
-
-    def __init__(self, command: list[str], cwd: str | None = None) -> None:
-        env = dict(os.environ)
-        env.update({k: "1" for k in THREAD_VARIABLES})
-        self.proc = subprocess.Popen(command, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
-                                     stderr=subprocess.PIPE, text=True, bufsize=1, cwd=cwd,
-                                     env=env)
-
-    def request(self, payload: dict[str, Any]) -> dict[str, Any]:
-        """Send one request, return its reply.
-
-        Raises:
-            WorkerError: An error reply, or the worker closed its output.
-
-        """
-        assert self.proc.stdin is not None and self.proc.stdout is not None
-        try:
-            self.proc.stdin.write(json.dumps(payload) + "\n")
-            self.proc.stdin.flush()
-        except BrokenPipeError:
-            raise WorkerError(f"worker died: {self._stderr()}") from None
-        line = self.proc.stdout.readline()
-        if not line:
-            raise WorkerError(f"worker died: {self._stderr()}")
-        reply = json.loads(line)
-        if not reply.get("ok"):
-            raise WorkerError(f"worker: {reply.get('error')}")
-        return reply
-
-    def _stderr(self) -> str:
-        self.proc.wait(timeout=10)
-        err = self.proc.stderr.read() if self.proc.stderr is not None else ""
-        return (err.strip().splitlines() or [f"exit {self.proc.returncode}"])[-1]
-
-    def close(self) -> None:
-        """Ask the worker to quit and wait for it."""
-        if self.proc.poll() is None:
-            try:
-                self.request({"op": "quit"})
-            except (WorkerError, OSError):
-                pass
-            self.proc.wait(timeout=10)
-
-
 class TsidStanding:
     """TSID holding a humanoid on both feet, in a worker process (module docstring).
 
     Args:
         robot: The bundled robot (TSID loads its URDF).
         dt: Control period [s].
-        python: TSID's interpreter (default: :func:`hqp.bench.tsid_env.env_python`).
+        python: TSID's interpreter (default: :func:`hqp.bench.peer_env.env_python`).
 
     Raises:
-        TsidUnavailable: TSID's environment is missing or cannot import TSID.
+        PeerUnavailable: TSID's environment is missing or cannot run the worker.
         WorkerError: The worker could not set the robot up.
 
     """
 
     def __init__(self, robot: Robot, dt: float = 1e-3, python: Path | None = None) -> None:
-        python = python or env_python()
-        reason = usable(python.parent.parent)
-        if reason is not None:
-            raise TsidUnavailable(reason)
-        self.worker = Worker([str(python), str(WORKER)], cwd=str(python.parent))
+        self.worker = start("tsid", WORKER, python)
         try:
             info = self.worker.request(setup_message(robot, dt))
-        except WorkerError:
+        except Exception:
             self.worker.close()
             raise
         self.tsid_version: str = info["tsid_version"]

@@ -1,11 +1,12 @@
 """TSID's control step on the standing task set, served to the controller suite over a pipe.
 
-This file runs in TSID's own environment (``python -m hqp.bench.tsid_env`` creates it: TSID
-needs another pinocchio than hqp's), started by :class:`hqp.bench.tsid_step.TsidStanding` as
-``<tsid python> tsid_worker.py``. It imports nothing of hqp: numpy, pinocchio and tsid only.
+This file runs in TSID's own environment (``python -m hqp.bench.peer_env tsid`` makes it:
+TSID's wheel needs another pinocchio than hqp's), started by :func:`hqp.bench.worker.start` as
+``<tsid python> -I tsid_worker.py``. It imports nothing of hqp: numpy, pinocchio and tsid only.
 
 Protocol: one JSON object per line on stdin, one JSON reply per line on stdout.
 
+- ``{"op": "hello"}`` -> ``{"ok": true}``;
 - ``{"op": "setup", "urdf": ..., "q": [...], "feet": [{"frame", "half_length",
   "half_width", "mu"}], "trunk": ..., "dt": ..., "gains": {...}, "weights": {...}}`` ->
   ``{"ok": true, "tsid_version": ..., "pinocchio_version": ..., "nq": ..., "nv": ...}``;
@@ -137,9 +138,11 @@ def serve(inp: TextIO, out: TextIO) -> None:
         try:
             msg = json.loads(line)
             op = msg.get("op")
-            if op == "quit":
+            if op in ("quit", "hello"):
                 _reply(out, {"ok": True})
-                return
+                if op == "quit":
+                    return
+                continue
             if op == "setup":
                 standing = Standing(msg)
                 _reply(out, {"ok": True, "tsid_version": metadata.version("tsid"),

@@ -131,6 +131,12 @@ class NativeStepMirror:
         self._report_order: list[tuple[int, tuple[Any, ...]]] | None = None
         self._reported: np.ndarray | None = None
         self._reported_names: list[str] = []
+        feasibility = getattr(controller, "feasibility", None)
+        self._report_settings: tuple[float, float, bool] | None = None
+        if feasibility is not None:
+            self._report_settings = (feasibility.tolerance, feasibility.singular_tolerance,
+                                     feasibility.full)
+            self.step_core.set_report(*self._report_settings)
         for task in stack.tasks:
             level = self._native_level(stack.level_of_task(task.name))
             self._add(core, task, level, self._contacts)
@@ -513,33 +519,27 @@ class NativeStepMirror:
         task.record_error(rate if isinstance(task, CentroidalMomentumTask) else e)
 
     def report(self, diagnostics: Diagnostics) -> tuple[
-            tuple[TaskStatus, ...] | Callable[[], tuple[TaskStatus, ...]], np.ndarray,
-            BuiltStack | None]:
-        """Return the last step's task statuses, level costs and (full mode) built levels.
+            Callable[[], tuple[TaskStatus, ...]], np.ndarray, None]:
+        """Return the last step's task statuses (a function of none), level costs and ``None``.
 
-        Each task's residual is its kernel's (computed in the step); its ``sigma_min`` is its
-        level's (``"residuals"`` mode) or its rows' projected on what the levels above leave
-        free (``"full"``, ``NativeStep.diagnose``), as the Python step's diagnostics have them.
-        When a task is in conflict under ``"full"``, the statuses (and the level it yields
-        to) are :meth:`~hqp.control.diagnostics.Diagnostics.hqp_statuses` on :meth:`built`.
-
-        In ``"residuals"`` mode the statuses are a function of none: the step's residuals,
-        singular values and costs are copied out now, the :class:`TaskStatus` objects made
-        when called (:class:`~hqp.control.command.FeasibilityReport` calls it when its
-        ``tasks`` are first read).
+        The statuses, each kernel's ``sigma_min`` and the level a conflict yields to were
+        computed by the core inside the step (``NativeStep.report``: the projected singular
+        values and the bisection over the bases of the optimal sets above, as
+        :class:`~hqp.control.diagnostics.Diagnostics` defines them); here they are copied
+        out, and the :class:`TaskStatus` objects made when the report's ``tasks`` are first
+        read.
         """
         core = self.step_core
         if self._report_order is None:  # by built level, as Stack.build's spans
             self._report_order = sorted(enumerate(self._placements()), key=lambda e: e[1][2])
+        settings = (diagnostics.tolerance, diagnostics.singular_tolerance, diagnostics.full)
+        if settings != self._report_settings:  # changed since the step: computed again
+            core.set_report(*settings)
+            core.compute_report()
+            self._report_settings = settings
         costs, level_sigma, weak, residuals = core.report_data()
-        if not diagnostics.full:
-            return _LazyStatuses(self, diagnostics, residuals, level_sigma, weak), costs, None
-        sigmas = core.diagnose()
-        statuses = self._statuses(diagnostics, residuals, level_sigma, weak, sigmas)
-        if statuses is None:  # a conflict: the level it yields to, from the levels
-            built, solution = self.built()
-            return diagnostics.hqp_statuses(built, solution), costs, built
-        return statuses, costs, None
+        codes, sigmas, yields = core.report_arrays()
+        return _NativeStatuses(self, residuals, codes, sigmas, yields, weak), costs, None
 
     def reported_handles(self) -> np.ndarray:
         """Return the handles of the kernels with rows in the levels (:meth:`_statuses`')."""
@@ -555,38 +555,6 @@ class NativeStepMirror:
         """Names of :meth:`reported_handles`, in order."""
         self.reported_handles()
         return self._reported_names
-
-    def status(self, diagnostics: Diagnostics, handle: int, residuals: np.ndarray,
-               level_sigma: np.ndarray, weak: np.ndarray,
-               sigmas: np.ndarray | None = None) -> TaskStatus:
-        """Return the status of one reported kernel from the step's data.
-
-        ``sigma_min``: the kernel's own (``sigmas``, ``"full"`` diagnostics) or its level's;
-        NaN for a kernel without equality rows.
-        """
-        _kind, level, built_level, _e0, neq, _i0, _nin, _w = self._placements()[handle]
-        if not neq:
-            sigma = math.nan
-        elif sigmas is None:
-            sigma = float(level_sigma[built_level])
-        else:
-            sigma = float(sigmas[handle])
-        residual = float(residuals[handle])
-        return TaskStatus(self._names[handle], self.stack_level(level),
-                          diagnostics.classify(residual, sigma, neq > 0), residual, None,
-                          sigma, int(weak[built_level]))
-
-    def _statuses(self, diagnostics: Diagnostics, residuals: np.ndarray,
-                  level_sigma: np.ndarray, weak: np.ndarray,
-                  sigmas: np.ndarray | None) -> tuple[TaskStatus, ...] | None:
-        """Each kernel's status from the step's data (``None``: a conflict in full mode)."""
-        out = []
-        for handle in self.reported_handles().tolist():
-            status = self.status(diagnostics, handle, residuals, level_sigma, weak, sigmas)
-            if sigmas is not None and status.status is Feasibility.CONFLICT:
-                return None
-            out.append(status)
-        return tuple(out)
 
     def _placements(self) -> list[tuple[Any, ...]]:
         """Return where each kernel's rows sit (``NativeStep.entry``, handle order)."""
@@ -641,45 +609,49 @@ class NativeStepMirror:
         return BuiltStack(levels, tuple(index), tuple(spans), rows, n), solution
 
 
-class _LazyStatuses:
-    """The statuses of one native step (``"residuals"`` mode), made when first called.
+_FEASIBILITY = (Feasibility.SATISFIED, Feasibility.CONFLICT, Feasibility.SINGULAR)
+"""The core's status codes 0, 1, 2 (``NativeStep.report_arrays``)."""
 
-    :meth:`any_conflict` answers from the step's residuals alone (a status is a conflict
-    exactly when its residual exceeds the diagnostics' tolerance, ``Diagnostics.classify``).
-    """
 
-    __slots__ = ("mirror", "diagnostics", "residuals", "level_sigma", "weak")
+class _NativeStatuses:
+    """The statuses of one native step, made from the core's report when first called."""
 
-    def __init__(self, mirror: NativeStepMirror, diagnostics: Diagnostics,
-                 residuals: np.ndarray, level_sigma: np.ndarray, weak: np.ndarray) -> None:
+    __slots__ = ("mirror", "residuals", "codes", "sigmas", "yields", "weak")
+
+    def __init__(self, mirror: NativeStepMirror, residuals: np.ndarray, codes: np.ndarray,
+                 sigmas: np.ndarray, yields: np.ndarray, weak: np.ndarray) -> None:
         self.mirror = mirror
-        self.diagnostics = diagnostics
         self.residuals = residuals
-        self.level_sigma = level_sigma
+        self.codes = codes
+        self.sigmas = sigmas
+        self.yields = yields
         self.weak = weak
 
+    def status(self, handle: int) -> TaskStatus:
+        """Return the status of one reported kernel."""
+        mirror = self.mirror
+        _kind, level, built_level, *_ = mirror._placements()[handle]
+        y = int(self.yields[handle])
+        return TaskStatus(mirror._names[handle], mirror.stack_level(level),
+                          _FEASIBILITY[int(self.codes[handle])], float(self.residuals[handle]),
+                          None if y < 0 else mirror.stack_level(y), float(self.sigmas[handle]),
+                          int(self.weak[built_level]))
+
     def __call__(self) -> tuple[TaskStatus, ...]:
-        statuses = self.mirror._statuses(self.diagnostics, self.residuals, self.level_sigma,
-                                         self.weak, None)
-        assert statuses is not None  # (None only in "full" mode)
-        return statuses
+        return tuple(self.status(h) for h in self.mirror.reported_handles().tolist())
 
     def any_conflict(self) -> bool:
-        """Whether a reported kernel's residual exceeds the tolerance (a conflict)."""
-        r = self.residuals[self.mirror.reported_handles()]
-        return bool(np.any(r > self.diagnostics.tolerance))
+        """Whether a reported kernel is in conflict."""
+        return bool(np.any(self.codes[self.mirror.reported_handles()] == 1))
 
     def names(self) -> list[str]:
         """Return the names of the statuses, in their order."""
         return self.mirror.reported_names()
 
     def conflicts(self) -> list[TaskStatus]:
-        """Return the statuses of the kernels in conflict alone (as :meth:`__call__` makes them)."""
-        mirror = self.mirror
-        handles = mirror.reported_handles()
-        hit = handles[self.residuals[handles] > self.diagnostics.tolerance]
-        return [mirror.status(self.diagnostics, h, self.residuals, self.level_sigma, self.weak)
-                for h in hit.tolist()]
+        """Return the statuses of the kernels in conflict alone."""
+        handles = self.mirror.reported_handles()
+        return [self.status(h) for h in handles[self.codes[handles] == 1].tolist()]
 
 
 def error_norms(tasks: Sequence[Any]) -> np.ndarray:

@@ -258,6 +258,22 @@ inline void bind_step(nb::module_& m) {
           },
           nb::arg("handle"),
           "(kind, stack level, built level, eq start, eq rows, ineq start, ineq rows, sqrt w).")
+      .def("set_report", &NativeStep::set_report, nb::arg("tolerance"),
+           nb::arg("singular_tolerance"), nb::arg("full"),
+           "Compute the feasibility report in every step from now on (the statuses, "
+           "projected sigma_min and yields_to of each kernel; full=False: the level's "
+           "sigma_min and no yields_to).")
+      .def("compute_report", &NativeStep::report,
+           "Compute the feasibility report of the last step again (after set_report).")
+      .def(
+          "report_arrays",
+          [](const NativeStep& s) {
+            return nb::make_tuple(to_numpy(s.statuses()), to_numpy(s.sigmas()),
+                                  to_numpy(s.yields()));
+          },
+          "(status, sigma_min, yields_to) of each kernel at the last step (handle order): "
+          "status 0 satisfied, 1 conflict, 2 singular, -1 not reported; yields_to the stack "
+          "level a conflict yields to, -1 none above (infeasible alone), -2 not a conflict.")
       .def(
           "diagnose", [](NativeStep& s) { return to_numpy(s.diagnose()); },
           "The full diagnostics' projected sigma_min of each kernel (handle order; NaN: no "

@@ -272,60 +272,39 @@ void NativeStep::layout_levels() {
   }
   data.back().set_norm(n_);
   residual_.setZero(Index(entries_.size()));
+  // the report's storage, for the largest shapes it can meet
+  Index rows_max = 1;
+  for (std::size_t k = 0; k < std::size_t(n_levels_); ++k) {
+    rows_max = std::max(rows_max, neq[k] + nin[k]);
+  }
+  task_rows_.clear();
+  for (const Entry& e : entries_) {
+    task_rows_.push_back(
+        {e.level, built_of_[std::size_t(e.level)], e.eq0, e.neq, e.in0, e.nin, e.sqrt_w});
+  }
+  report_.reserve(Index(entries_.size()), Index(used_.size()), rows_max, n_);
   laid_out_ = true;
 }
 
-namespace {
-
-// Rows of `src` (weighted) selected as `dst` = [A rows; C rows in state > 0] / scale.
-void stack_rows(const Eigen::MatrixXd& A, Eigen::Index a0, Eigen::Index na,
-                const Eigen::MatrixXd& C, Eigen::Index c0, Eigen::Index nc, const IVec& state,
-                double scale, Eigen::MatrixXd& dst) {
-  Eigen::Index m = na;
-  for (Eigen::Index i = 0; i < nc; ++i) m += state(c0 + i) > 0 ? 1 : 0;
-  dst.resize(m, A.cols());
-  dst.topRows(na) = A.middleRows(a0, na) / scale;
-  Eigen::Index r = na;
-  for (Eigen::Index i = 0; i < nc; ++i) {
-    if (state(c0 + i) > 0) dst.row(r++) = C.row(c0 + i) / scale;
+void NativeStep::set_report(double tolerance, double singular_tolerance, bool full) {
+  if (!(tolerance >= 0.0) || !(singular_tolerance >= 0.0)) {
+    throw std::invalid_argument("report: tolerances must be >= 0");
   }
+  report_.set(tolerance, singular_tolerance, full);
+  report_on_ = true;
 }
 
-}  // namespace
+void NativeStep::report() {
+  if (!laid_out_) throw std::logic_error("report: no step made yet");
+  report_.compute(hierarchy_.levels(), hierarchy_.results(), used_, task_rows_, residual_);
+}
 
 const Eigen::VectorXd& NativeStep::diagnose() {
-  const auto& data = hierarchy_.levels();
-  const auto& results = hierarchy_.results();
-  const Index nb = Index(used_.size());
-  sigma_.setConstant(Index(entries_.size()), std::numeric_limits<double>::quiet_NaN());
-  Zd_.setIdentity(n_, n_);
-  for (Index k = 0; k < nb; ++k) {
-    const LevelData& lv = data[std::size_t(k)];
-    const IVec& state = results[std::size_t(k)].state;
-    for (std::size_t i = 0; i < entries_.size(); ++i) {
-      const Entry& e = entries_[i];
-      if (built_of_[std::size_t(e.level)] != k || e.neq == 0) continue;
-      stack_rows(lv.A, e.eq0, e.neq, lv.C, e.in0, e.nin, state, e.sqrt_w, Md_);
-      const Index m = Md_.rows();
-      if (m > Zd_.cols()) {
-        sigma_[Index(i)] = 0.0;
-        continue;
-      }
-      Pd_.noalias() = Md_ * Zd_;
-      const Eigen::VectorXd& sv = sv_.compute(Pd_);
-      sigma_[Index(i)] = sv.size() >= m ? sv(m - 1) : 0.0;
-    }
-    if (k + 1 < nb) {
-      stack_rows(lv.A, 0, lv.A.rows(), lv.C, 0, lv.C.rows(), state, 1.0, Md_);
-      if (Md_.rows() == 0 || Zd_.cols() == 0) continue;
-      Pd_.noalias() = Md_ * Zd_;
-      null_qr_.compute_relative(Pd_, 1e-9);
-      if (null_qr_.rank() == 0) continue;
-      Zn_.noalias() = Zd_ * null_qr_.null();
-      Zd_.swap(Zn_);
-    }
-  }
-  return sigma_;
+  const bool full = report_.full();
+  report_.set(report_.tolerance(), report_.singular_tolerance(), true);
+  report();
+  report_.set(report_.tolerance(), report_.singular_tolerance(), full);
+  return report_.sigma();
 }
 
 NativeStep::EntryInfo NativeStep::entry(int handle) const {
@@ -468,6 +447,7 @@ std::string NativeStep::step(const Eigen::Ref<const Eigen::VectorXd>& q,
                       r.violation_in.segment(e.in0, e.nin).squaredNorm();
     residual_[Index(i)] = std::sqrt(sq) / e.sqrt_w;
   }
+  if (report_on_) report();
   return std::string();
 }
 

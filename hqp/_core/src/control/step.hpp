@@ -16,6 +16,7 @@
 #include "model/robot.hpp"
 #include "solver/hierarchy.hpp"
 #include "solver/linalg.hpp"
+#include "solver/report.hpp"
 #include "tasks/collision.hpp"
 #include "tasks/cop.hpp"
 #include "tasks/gaze.hpp"
@@ -133,12 +134,25 @@ class NativeStep {
   /// Unweighted residual norm of each kernel's rows at the last step's x (equality residual
   /// and inequality violation stacked), in handle order; filled by step() without allocating.
   const Eigen::VectorXd& residuals() const { return residual_; }
+  /// The feasibility report's settings (solver/report.hpp): a kernel whose unweighted
+  /// residual norm exceeds `tolerance` is in conflict; one with equality rows whose projected
+  /// sigma_min is below `singular_tolerance` is singular; `full`: projected sigma_min per
+  /// kernel and the level each conflict yields to (else the level's sigma_min, no yields_to).
+  /// Once set, every step() computes the report before it returns.
+  void set_report(double tolerance, double singular_tolerance, bool full);
+  /// Compute the report of the last step (statuses(), sigmas(), yields()); no heap
+  /// allocation (its storage is reserved when the levels are laid out).
+  void report();
   /// The full diagnostics' sigma_min of each kernel (handle order; NaN for a kernel without
-  /// equality rows), as hqp.control.diagnostics.Diagnostics.hqp_statuses computes it: the
-  /// m-th singular value of its m unweighted rows (equalities and active inequalities) times
-  /// an orthonormal basis of what the levels above leave free (the null space of their
-  /// equality and active inequality rows). Sizes vary with the active sets: this allocates.
+  /// equality rows).
   const Eigen::VectorXd& diagnose();
+  /// Per kernel (handle order): 0 satisfied, 1 conflict, 2 singular, -1 not reported (no
+  /// rows in the built levels).
+  const IVec& statuses() const { return report_.status(); }
+  const Eigen::VectorXd& sigmas() const { return report_.sigma(); }
+  /// Per kernel: the stack level a conflict yields to; -1: infeasible on its own (no level
+  /// above blocks it); -2: not a conflict (or a report without yields_to).
+  const IVec& yields() const { return report_.yields(); }
   /// The solver's report of built level k (cost, sigma_min, per-row states).
   const LevelResult& result(int k) const { return hierarchy_.results()[std::size_t(k)]; }
 
@@ -191,10 +205,10 @@ class NativeStep {
   Eigen::VectorXd tau_;
   Eigen::VectorXd x_ramp_;  // the x_prev of the ramp offsets recorded at the next step
   Eigen::VectorXd residual_;
-  Eigen::VectorXd sigma_;
-  Eigen::MatrixXd Zd_, Zn_, Md_, Pd_;
-  PivotedQR null_qr_;
-  SingularValues sv_;
+  Report report_;
+  std::vector<TaskRows> task_rows_;
+  bool report_on_ = false;
+
 };
 
 }  // namespace hqp
