@@ -10,6 +10,7 @@ from pathlib import Path
 import pytest
 
 from hqp.app.run import run_behavior
+from hqp.behaviors.loader import LIBRARY
 
 pytestmark = pytest.mark.slow
 
@@ -27,7 +28,8 @@ def check_upright(result, *, flight_allowed: bool = False) -> None:
 
 
 def test_reach_follows_the_streamed_goal_without_falling() -> None:
-    result = run_behavior("reach", duration=2.5)
+    # the seed's points, streamed (the library's default goal is relative to the shoulder)
+    result = run_behavior("reach", duration=2.5, inputs=LIBRARY / "reach_inputs.jsonl")
     check_upright(result)
     assert result.phases == ["stand", "reach"]
     hand = result.metrics["task_errors"]["reach"]["hand"]

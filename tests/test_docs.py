@@ -3,9 +3,11 @@
 - ``mkdocs build --strict`` passes without a warning (broken links and anchors, pages left
   out of the navigation, docstrings mkdocstrings cannot read are warnings: mkdocs.yml);
 - every relative link of the README names a file of the repository;
-- every ``hqp ...`` command of a ```bash block of the README, docs/getting-started.md,
-  docs/concepts/ and docs/guides/ exits with status 0, run from a folder holding the pages'
-  TOML files; the commands that are not run are listed in ``NOT_RUN`` with the reason;
+- every ``hqp ...`` command of a ```bash (or ```sh) block of the README,
+  docs/getting-started.md, docs/robots.md, docs/concepts/ and docs/guides/ exits with status
+  0, run from a folder holding the pages' TOML files and the repository's ``tests`` folder
+  (the robot files the pages name); the commands that are not run are listed in ``NOT_RUN``
+  with the reason;
 - no tracked text file speaks of a "session" followed by a number (the project's working
   sessions are no fact a user can use: state the fact, or the measurement with its command).
 """
@@ -23,7 +25,7 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-PAGES = [ROOT / "README.md", ROOT / "docs" / "getting-started.md",
+PAGES = [ROOT / "README.md", ROOT / "docs" / "getting-started.md", ROOT / "docs" / "robots.md",
          *sorted((ROOT / "docs" / "concepts").glob("*.md")),
          *sorted((ROOT / "docs" / "guides").glob("*.md"))]
 
@@ -91,7 +93,7 @@ NOT_RUN = {
 def _commands() -> list[tuple[str, str]]:
     commands = []
     for page in PAGES:
-        for block in re.findall(r"^```bash\n(.*?)^```", page.read_text(), re.S | re.M):
+        for block in re.findall(r"^```(?:bash|sh)\n(.*?)^```", page.read_text(), re.S | re.M):
             for line in block.replace("\\\n", " ").splitlines():
                 command = re.split(r"\s+#\s", line)[0].strip()
                 if command.startswith("hqp ") or command.startswith("OMP_NUM_THREADS=1 hqp "):
@@ -128,6 +130,7 @@ def test_a_command_of_the_pages_exits_0(page, command, tmp_path):
     if skip:
         pytest.skip(f"not run: {skip}")
     _toml_files(tmp_path)
+    (tmp_path / "tests").symlink_to(ROOT / "tests")  # tests/data/robots/*.toml
     argv = shlex.split(command.replace("OMP_NUM_THREADS=1 ", ""))
     hqp = [sys.executable, "-m", "hqp.cli"]
     result = subprocess.run(hqp + argv[1:], cwd=tmp_path, env=_env(), capture_output=True,

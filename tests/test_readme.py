@@ -2,7 +2,8 @@
 
 Every ```python block of README.md, docs/getting-started.md, docs/robots.md, docs/concepts/
 and docs/guides/ runs in a fresh namespace, in a folder holding the TOML blocks of those
-pages whose first line names their file (``# lean.toml: ...``). The reference, results and
+pages whose first line names their file (``# lean.toml: ...``) and the repository's
+``tests`` folder (the robot files the pages name). The reference, results and
 design pages quote code (contracts, measured snippets) and are not run here.
 """
 
@@ -48,6 +49,7 @@ def test_the_pages_have_their_examples():
 def test_an_example_runs(page, index, block, tmp_path, monkeypatch, capsys):
     for name, text in FILES.items():
         (tmp_path / name).write_text(text)
+    (tmp_path / "tests").symlink_to(ROOT / "tests")  # the robot files the pages name
     monkeypatch.chdir(tmp_path)
     exec(compile(block, f"{page} python block {index + 1}", "exec"), {"__name__": "__main__"})
     assert capsys.readouterr().out.strip()  # every example prints what it shows

@@ -12,6 +12,7 @@ import json
 import logging
 from typing import Any
 
+from hqp import robots
 from hqp.app.console import stdout_to_stderr
 from hqp.bench import get_suite, run_suite, suite_names
 from hqp.bench.report import COLUMNS, format_table, write_plots
@@ -38,25 +39,31 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
                    help="print every column (default: the table fits 100 columns)")
     p.add_argument("--quick", action="store_true",
                    help="a small, short subset (CI smoke test; times are not meaningful)")
+    p.add_argument("--robot", action="append", default=None,
+                   help="robot name or robot TOML file (repeatable; controller suite: "
+                        "instead of its robots)")
     p.set_defaults(func=command)
     return p
 
 
 def command(args: argparse.Namespace) -> int:
     """Run ``hqp bench``."""
-    get_suite(args.suite)  # unknown suites fail before any work
+    get_suite(args.suite)  # unknown suites and robots fail before any work
+    robot_list = getattr(args, "robot", None)
+    for robot in robot_list or ():
+        robots.check(robot)
 
     def progress(message: str) -> None:
         logger.info(message)
 
     if args.json:
         with stdout_to_stderr() as out:
-            result = run_suite(args.suite, quick=args.quick, progress=progress)
+            result = run_suite(args.suite, quick=args.quick, progress=progress, robots=robot_list)
             if args.plot:
                 write_plots(result, args.plot)
             out.write(json.dumps(result) + "\n")
         return 0
-    result = run_suite(args.suite, quick=args.quick, progress=progress)
+    result = run_suite(args.suite, quick=args.quick, progress=progress, robots=robot_list)
     if args.plot:
         for path in write_plots(result, args.plot):
             logger.info("wrote %s", path)

@@ -25,6 +25,7 @@ from typing import Any, TextIO
 
 from comparisons import CONTROLLERS, SCENARIOS, get_scenario
 from comparisons.report import format_table, write_plots
+from hqp import robots
 from hqp.app.console import fallback_note, stdout_to_stderr
 from hqp.bench import peer_env
 from hqp.errors import InvalidInput
@@ -57,7 +58,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--controllers", nargs="+", metavar="C",
         help=f"controllers to run (default: all the scenario supports; {', '.join(CONTROLLERS)})",
     )
-    parser.add_argument("--robot", help="robot name (default: the scenario's)")
+    parser.add_argument("--robot", help="robot name or robot TOML file (default: the "
+                        "scenario's; the paper scenarios run on paper-humanoid)")
     parser.add_argument(
         "--duration", type=float, metavar="S", help="simulated duration of each run [s]"
     )
@@ -104,6 +106,8 @@ def _run(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     single_blas_thread()
     names: Sequence[str] = SCENARIOS if args.all else [args.name]
     scenarios = [get_scenario(n) for n in names]  # unknown names fail before any run
+    if args.robot is not None:
+        robots.check(args.robot)  # a missing robot file too; a scenario names its robots
 
     def progress(message: str) -> None:
         print(message, file=err, flush=True)

@@ -23,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from hqp import robots
 from hqp.app.console import fallback_note, output_path_problem, progress_bar, stdout_to_stderr
 from hqp.behaviors.behavior import Behavior
 from hqp.behaviors.setup import prepare
@@ -353,7 +354,8 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
         description="Run a behavior in closed loop with MuJoCo and report what happened: "
                     "phases visited, fall, footsteps, feasibility events.")
     p.add_argument("behavior", help="library name (see `hqp behaviors`) or a .toml file")
-    p.add_argument("--robot", default=None, help="robot (default: the behavior's)")
+    p.add_argument("--robot", default=None,
+                   help="robot name or robot TOML file (default: the behavior's)")
     p.add_argument("--controller", default="hqp", choices=CONTROLLER_NAMES)
     p.add_argument("--backend", default=None,
                    help="QP backend of the HQP controller: proxsuite, daqp, quadprog, osqp "
@@ -398,6 +400,7 @@ def check_arguments(args: argparse.Namespace) -> dict[str, Any]:
     Raises:
         InvalidInput: A duration that is not a positive finite number, a backend given to
             the null-space law, an unknown backend, an output path that cannot be written.
+        UnknownName: A robot that is neither bundled nor a file.
 
     """
     if args.duration is not None and not (np.isfinite(args.duration) and args.duration > 0):
@@ -410,6 +413,8 @@ def check_arguments(args: argparse.Namespace) -> dict[str, Any]:
         if args.backend not in known_backends():
             raise UnknownBackend(args.backend, known_backends())
     check_output_paths(plot=args.plot, video=args.video, prefix="--")
+    if args.robot is not None:
+        robots.check(args.robot)
     return _overrides(args.set)
 
 

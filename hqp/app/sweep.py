@@ -22,6 +22,7 @@ from typing import Any
 
 from tqdm import tqdm
 
+from hqp import robots
 from hqp.app.console import output_path_problem, stdout_to_stderr
 from hqp.errors import InvalidInput
 from hqp.study import (
@@ -53,7 +54,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     what = p.add_argument_group("what is simulated")
     what.add_argument("--name", help="name of the study (default: its kind or file name)")
     what.add_argument("--target", help="standing (default), behavior:NAME or scenario:NAME")
-    what.add_argument("--robot", help="robot (default: paper-humanoid)")
+    what.add_argument("--robot", help="robot name or robot TOML file (default: paper-humanoid)")
     what.add_argument("--controllers", nargs="+", metavar="C",
                       help="controllers compared (default: hqp)")
     what.add_argument("--duration", type=float, metavar="S", help="simulated time per run [s]")
@@ -138,6 +139,8 @@ def study_from_args(args: argparse.Namespace) -> Study:
                 "timeout"):
         if getattr(args, key) is not None:
             data[key] = getattr(args, key)
+    if args.robot is not None and robots.is_robot_file(args.robot):
+        data["robot"] = str(Path(args.robot).resolve())  # the workers' working directory
     fixed = {k: _value(v) for k, v in _pairs(args.set, "--set").items()}
     if fixed:
         data["fixed"] = {**data.get("fixed", {}), **fixed}

@@ -95,6 +95,8 @@ class Behavior:
             ``output_names`` (required when the spec declares one; see
             :mod:`hqp.behaviors.planners`).
         standing: Standing configuration ``(nq,)`` (``standing`` in goal expressions).
+        robot_values: The robot's dimensions (``robot.<name>`` in expressions:
+            :meth:`hqp.robots.Robot.dimensions`).
         safety_steps: Consecutive control steps a task's raw flag must hold before its
             feasibility flag changes (filters single-step flags).
         infeasible_residual: Residual below which a conflict is not flagged [task units /
@@ -119,6 +121,7 @@ class Behavior:
         inputs: InputStream | None = None,
         planner: Any = None,
         standing: np.ndarray | None = None,
+        robot_values: Mapping[str, Any] | None = None,
         safety_steps: int = 5,
         infeasible_residual: float = 1e-3,
     ) -> None:
@@ -132,6 +135,7 @@ class Behavior:
         self.inputs = inputs if inputs is not None else InputStream(spec.inputs)
         self.planner = planner
         self.standing = standing
+        self.robot_values = dict(robot_values or {})
         self.safety_steps = int(safety_steps)
         self.infeasible_residual = float(infeasible_residual)
         self.Phase: type[enum.Enum] = spec.phase_enum()
@@ -377,6 +381,7 @@ class Behavior:
                                             model.frame_names, "frame"),
             "plan": lambda: self._plan(t),
             "pose": lambda: _LazyNamespace(self.pose, self.spec.poses, "pose"),
+            "robot": lambda: Namespace(self.robot_values, "robot"),
         }
         if initial is not None:
             makers["initial"] = lambda: initial
@@ -457,7 +462,7 @@ class Behavior:
                                         else v for k, v in values.items()}
 
 
-_FIXED_IN_PHASE = frozenset({"com0", "feet_center", "standing", "pose", "initial"})
+_FIXED_IN_PHASE = frozenset({"com0", "feet_center", "standing", "pose", "initial", "robot"})
 """Names of the expression environment whose values do not change within a phase."""
 
 

@@ -35,6 +35,7 @@ from hqp.behaviors.spec import (
     Transition,
 )
 from hqp.errors import BehaviorFileError, UnknownName
+from hqp.robots.robot import DIMENSIONS
 from hqp.solver.backends import known_backends
 from hqp.tasks.base import Category
 
@@ -45,9 +46,11 @@ SENSED_NAMES = frozenset(
     {
         "t", "phase_time", "com", "com_velocity", "com0", "feet_center", "contact", "contacts",
         "error", "conflict", "infeasible", "joint", "joint_margin", "input", "plan", "frame",
+        "robot",
     }
 )
-"""Names a condition may read (see :class:`hqp.behaviors.behavior.Behavior`)."""
+"""Names a condition may read (see :class:`hqp.behaviors.behavior.Behavior`); ``robot.<name>``
+are the robot's dimensions (:data:`hqp.robots.robot.DIMENSIONS`), fixed for a run."""
 
 GOAL_NAMES = SENSED_NAMES | {"initial", "standing", "pose"}
 """Names a goal expression may read: the sensed ones, the task's value when its phase
@@ -181,7 +184,8 @@ def parse_behavior(
                         max_joint_acceleration [rad/s^2] (HQP joint-acceleration clip),
                         max_torque_rate [N m/s] (HQP torque-rate level; 0: none)
         [contacts]      optional: contact name = frame (default: the robot's contacts)
-        [inputs.NAME]   shape, default, interpolate, description   -> input.NAME
+        [inputs.NAME]   shape, default (numbers, or an expression of robot.<name>),
+                        interpolate, description   -> input.NAME
         [tasks.NAME]    type, level (int or category), weight, then the type's
                         frames, goals (numbers or expressions) and parameters
         [actions.NAME]  tasks = [...], levels = {task = level}      (action primitives)
@@ -315,6 +319,20 @@ def _input(ctx: _Ctx, iname: str, itab: Any) -> InputSpec:
     _check_keys(ctx, itab, key, {"shape", "default", "interpolate", "description"})
     default = itab.get("default")
     shape_raw = itab.get("shape")
+    default_expr = None
+    if isinstance(default, str):  # an expression of the robot's dimensions
+        if shape_raw is None:
+            raise ctx.error((*key, "shape"), "missing key: an expression default needs a shape")
+        try:
+            default_expr = parse(default, {"robot"})
+        except ExpressionError as exc:
+            raise ctx.error((*key, "default"), f"{exc} (a default may read robot.<name> "
+                            "only)") from None
+        for _, attr in default_expr.attributes:
+            if attr not in DIMENSIONS and attr not in ("x", "y", "z"):
+                raise ctx.error((*key, "default"), f"robot.{attr}: unknown robot dimension; "
+                                f"expected one of {', '.join(DIMENSIONS)}")
+        default = None
     if default is not None:
         try:
             default_arr = np.array(default, dtype=float)
@@ -341,6 +359,7 @@ def _input(ctx: _Ctx, iname: str, itab: Any) -> InputSpec:
         iname, shape, default_arr,
         bool(_get(ctx, itab, (*key, "interpolate"), bool, default=False)),
         _get(ctx, itab, (*key, "description"), str, default=""),
+        default_expr,
     )
 
 
@@ -421,7 +440,7 @@ class _NameCheck:
             "input": set(inputs), "error": tasks, "conflict": tasks, "infeasible": tasks,
             "contact": contacts,
             "plan": set(plan), "frame": frames, "joint": joints, "joint_margin": joints,
-            "pose": poses,
+            "pose": poses, "robot": set(DIMENSIONS),
         }
 
     def expression(self, key: tuple[str | int, ...], value: Any, goal: bool) -> Expression:
@@ -437,7 +456,8 @@ class _NameCheck:
                 what = {"input": "input", "error": "task", "conflict": "task",
                         "infeasible": "task",
                         "contact": "contact", "plan": "planner output", "frame": "frame",
-                        "joint": "joint", "joint_margin": "joint", "pose": "pose"}[ns]
+                        "joint": "joint", "joint_margin": "joint", "pose": "pose",
+                        "robot": "robot dimension"}[ns]
                 hint = ("; declare it under [planner]" if ns == "plan" and not valid else "")
                 raise self.ctx.error(
                     key, f"{ns}.{attr}: unknown {what} {attr!r}; expected one of "

@@ -102,6 +102,32 @@ def _with_overrides(spec: BehaviorSpec, overrides: dict[str, Any]) -> BehaviorSp
     return replace(spec, inputs=new_inputs)
 
 
+def _robot_defaults(spec: BehaviorSpec, dimensions: dict[str, Any]) -> BehaviorSpec:
+    """Return the spec with its expression defaults evaluated on the robot's dimensions.
+
+    Raises:
+        BehaviorFileError: A default that does not give finite numbers of the input's shape
+            (names the file and key).
+
+    """
+    new_inputs = dict(spec.inputs)
+    env = {"robot": Namespace(dimensions, "robot")}
+    for k, old in spec.inputs.items():
+        if old.default_expression is None:
+            continue
+        key = ("inputs", k, "default")
+        try:
+            value = np.asarray(old.default_expression.evaluate(env), dtype=float)
+        except (ExpressionError, TypeError, ValueError) as exc:
+            raise file_error(spec.path, key, str(exc)) from None
+        if value.size != int(np.prod(old.shape)) or not np.isfinite(value).all():
+            raise file_error(spec.path, key, f"gives {value.tolist()} on this robot; expected "
+                             f"finite numbers of shape {list(old.shape)}")
+        new_inputs[k] = InputSpec(k, old.shape, value.reshape(old.shape), old.interpolate,
+                                  old.description)
+    return replace(spec, inputs=new_inputs)
+
+
 def _check_for_controller(spec: BehaviorSpec, behavior: Behavior, ctrl: Any,
                           factory: TaskFactory) -> None:
     """Check at load what only the controller can tell: levels and the goals known then.
@@ -142,9 +168,9 @@ def _check_for_controller(spec: BehaviorSpec, behavior: Behavior, ctrl: Any,
                     raise file_error(spec.path, gkey, str(exc)) from None
 
 
-_KNOWN_AT_LOAD = frozenset({"input", "standing", "pose"})
+_KNOWN_AT_LOAD = frozenset({"input", "standing", "pose", "robot"})
 """Names a goal may read that have a value before the run: the inputs at t = 0, the
-standing configuration, the captured poses."""
+standing configuration, the captured poses, the robot's dimensions."""
 
 
 def _load_env(spec: BehaviorSpec, behavior: Behavior) -> dict[str, Any]:
@@ -154,6 +180,7 @@ def _load_env(spec: BehaviorSpec, behavior: Behavior) -> dict[str, Any]:
         "input": Namespace({k: stream.value(k, 0.0) for k in spec.inputs}, "input"),
         "standing": behavior.standing,
         "pose": Namespace({k: behavior.pose(k) for k in spec.poses}, "pose"),
+        "robot": Namespace(behavior.robot_values, "robot"),
     }
 
 
@@ -170,7 +197,7 @@ def prepare(
 
     Args:
         source: Library name, file path, or an already parsed spec.
-        robot: Robot name (default: the behavior's).
+        robot: Robot name or robot TOML file (default: the behavior's).
         controller: ``"hqp"`` or ``"nullspace"``.
         inputs: Inputs file (default: the behavior's ``inputs_file``, else defaults).
         overrides: Input defaults to replace, by input name (e.g. a jump target).
@@ -198,6 +225,8 @@ def prepare(
     if spec.path is not None:
         spec = load_behavior(spec.path, frames=model.frame_names, joints=model.joint_names,
                              contacts=list(contacts))
+    dimensions = robot_obj.dimensions()
+    spec = _robot_defaults(spec, dimensions)
     if overrides:
         spec = _with_overrides(spec, overrides)
     factory = TaskFactory(model, contacts, robot_obj.q_standing, feet=robot_obj.feet)
@@ -210,6 +239,6 @@ def prepare(
                               foot_length=2 * surface.half_length,
                               foot_width=2 * surface.half_width, where=str(path))
     behavior = Behavior(spec, ctrl, factory, inputs=stream, planner=planner,
-                        standing=robot_obj.q_standing)
+                        standing=robot_obj.q_standing, robot_values=dimensions)
     _check_for_controller(spec, behavior, ctrl, factory)
     return behavior, ctrl, robot_obj

@@ -27,9 +27,13 @@ class InputSpec:
     Attributes:
         name: Input name (read in expressions as ``input.<name>``).
         shape: Shape of its value (``()`` for a scalar).
-        default: Value before any sample arrives (``None``: the input must be given).
+        default: Value before any sample arrives (``None``: the input must be given, or
+            :attr:`default_expression` gives it once the robot is known).
         interpolate: Interpolate linearly between timed samples (else zero-order hold).
         description: Free text.
+        default_expression: The default written as an expression of the robot's dimensions
+            (``"robot.right_shoulder + [0.3, 0, 0]"``), evaluated when the behavior is
+            prepared for a robot.
 
     """
 
@@ -38,6 +42,7 @@ class InputSpec:
     default: np.ndarray | None = None
     interpolate: bool = False
     description: str = ""
+    default_expression: Expression | None = None
 
 
 @dataclass(frozen=True)

@@ -11,10 +11,11 @@ registered with :func:`register_suite`.
 from __future__ import annotations
 
 import importlib
-from collections.abc import Callable
+import inspect
+from collections.abc import Callable, Sequence
 
 from hqp.bench.method import Timing, measure
-from hqp.errors import UnknownName
+from hqp.errors import InvalidInput, UnknownName
 
 Row = dict
 Suite = Callable[..., list[Row]]
@@ -62,15 +63,28 @@ def get_suite(name: str) -> Suite:
 
 
 def run_suite(
-    name: str, quick: bool = False, progress: Callable[[str], None] | None = None
+    name: str, quick: bool = False, progress: Callable[[str], None] | None = None,
+    robots: Sequence[str] | None = None,
 ) -> dict:
     """Run a suite; return ``{"suite": name, "rows": [...], "skipped": [...]}``.
 
     ``rows`` holds the configurations measured in the run (the contract: one row per measured
     configuration, each with its times); a configuration the suite could not measure on this
     machine (TSID without its environment) is listed in ``skipped`` with the reason instead.
+    ``robots`` (bundled names or robot TOML files) replaces the suite's robots.
+
+    Raises:
+        InvalidInput: ``robots`` given to a suite that runs on no robot.
+
     """
-    rows = get_suite(name)(quick=quick, progress=progress or (lambda _msg: None))
+    suite = get_suite(name)
+    if robots:
+        if "robots" not in inspect.signature(suite).parameters:
+            raise InvalidInput(f"hqp bench: suite {name!r} runs on no robot; --robot applies "
+                               "to the controller suite")
+        rows = suite(quick=quick, progress=progress or (lambda _msg: None), robots=robots)
+    else:
+        rows = suite(quick=quick, progress=progress or (lambda _msg: None))
     return {"suite": name, "rows": [r for r in rows if "skipped" not in r],
             "skipped": [r for r in rows if "skipped" in r]}
 

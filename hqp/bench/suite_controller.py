@@ -256,7 +256,7 @@ def _ratios(rows: list[dict[str, Any]]) -> None:
 
 def run_robot(robot_name: str, names: Sequence[str], *, quick: bool = False,
               progress: Callable[[str], None] | None = None) -> list[dict[str, Any]]:
-    """Rows of one robot."""
+    """Rows of one robot (a bundled name or a robot TOML file; rows carry its name)."""
     robot = load_robot(robot_name)
     sts = states(robot_name, count=2 if quick else 8)
     steppers: dict[str, _Stepper] = {}
@@ -272,7 +272,7 @@ def run_robot(robot_name: str, names: Sequence[str], *, quick: bool = False,
         except Exception as exc:  # noqa: BLE001 - an unavailable configuration is reported
             failed[name] = f"{type(exc).__name__}: {exc}"
     try:
-        return _measure(robot_name, names, steppers, sts, failed, skipped, quick, progress)
+        return _measure(robot.name, names, steppers, sts, failed, skipped, quick, progress)
     finally:
         for st in steppers.values():
             if st.peer is not None:

@@ -12,7 +12,7 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pinocchio as pin
@@ -26,6 +26,11 @@ if TYPE_CHECKING:
 
 ROOT_JOINT = "root_joint"
 """Name of the free-flyer joint in every robot's pinocchio model."""
+
+DIMENSIONS = ("left_shoulder", "right_shoulder", "left_hand", "right_hand", "arm_length",
+              "leg_length", "feet_center", "standing_height", "com_height", "foot_length",
+              "foot_width", "trunk", "head")
+"""Names of :meth:`Robot.dimensions` (``robot.<name>`` in behavior files)."""
 
 
 @dataclass(frozen=True)
@@ -149,6 +154,57 @@ class Robot:
         import mujoco
 
         return mujoco.MjModel.from_xml_path(str(self.mjcf_path))
+
+    def dimensions(self) -> dict[str, Any]:
+        """Sizes and standing positions of the robot (``robot.<name>`` in behavior files).
+
+        Positions are world coordinates [m] in :attr:`q_standing` (``(3,)`` arrays); the
+        names are :data:`DIMENSIONS`. A shoulder is the first joint of the arm below the
+        trunk (the last joint common to both hands' chains); ``arm_length`` is the sum of the
+        arm's segments from the shoulder to the hand point (the reach of the straight arm),
+        ``leg_length`` the same from the hip (the first joint of the leg) to the sole.
+        """
+        model = self.pinocchio_model()
+        data = model.createData()
+        q = np.asarray(self.q_standing)
+        pin.framesForwardKinematics(model, data, q)
+        pin.centerOfMass(model, data, q)
+
+        def chain(frame: str) -> list[int]:
+            joint = model.frames[model.getFrameId(frame)].parentJoint
+            out = []
+            while joint > 1:
+                out.append(joint)
+                joint = model.parents[joint]
+            return out[::-1]
+
+        def length(joints: list[int], frame: str) -> float:
+            points = [data.oMi[j].translation for j in joints]
+            points.append(data.oMf[model.getFrameId(frame)].translation)
+            return float(sum(np.linalg.norm(b - a) for a, b in zip(points[:-1], points[1:])))
+
+        left, right = chain(self.hands[0]), chain(self.hands[1])
+        common = [j for j in left if j in right]
+        arms = [[j for j in c if j not in common] for c in (left, right)]
+        legs = [chain(f) for f in self.feet]
+        out: dict[str, Any] = {}
+        for side, arm, hand in zip(("left", "right"), arms, self.hands):
+            out[f"{side}_shoulder"] = data.oMi[arm[0]].translation.copy() if arm else \
+                data.oMf[model.getFrameId(hand)].translation.copy()
+            out[f"{side}_hand"] = data.oMf[model.getFrameId(hand)].translation.copy()
+        out["arm_length"] = 0.5 * sum(length(a, h) for a, h in zip(arms, self.hands))
+        out["leg_length"] = 0.5 * sum(length(leg, f) for leg, f in zip(legs, self.feet))
+        feet = [data.oMf[model.getFrameId(f)].translation for f in self.feet]
+        out["feet_center"] = 0.5 * (feet[0] + feet[1])
+        out["standing_height"] = float(self.standing_height)
+        out["com_height"] = float(data.com[0][2])
+        sole = self.contact(self.feet[0])
+        out["foot_length"] = 2.0 * sole.half_length
+        out["foot_width"] = 2.0 * sole.half_width
+        out["trunk"] = data.oMf[model.getFrameId("trunk")].translation.copy()
+        head = self.head_frame if self.head_frame is not None else "trunk"
+        out["head"] = data.oMf[model.getFrameId(head)].translation.copy()
+        return out
 
     def contact(self, name: str) -> ContactSurface:
         """Return a contact surface by name.

@@ -143,8 +143,8 @@ def check_params(params: Mapping[str, Any]) -> None:
     if isinstance(duration, bool) or not isinstance(duration, (int, float)) \
             or not math.isfinite(duration) or duration <= 0.0:
         raise InvalidInput(f"study: duration must be a positive number [s], got {duration!r}")
-    if "robot" in params and params["robot"] not in robots.NAMES:
-        raise UnknownName("robot", str(params["robot"]), robots.NAMES)
+    if "robot" in params:
+        robots.check(str(params["robot"]))
     if kind == "standing":
         if controller not in CONTROLLER_NAMES:
             raise UnknownName("controller", str(controller), CONTROLLER_NAMES)

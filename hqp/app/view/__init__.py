@@ -36,7 +36,8 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
                     "step, reset, push. Ctrl-C stops it.")
     p.add_argument("behavior", nargs="?", default="stand",
                    help="library behavior to start with (default: stand)")
-    p.add_argument("--robot", default=None, help="robot (default: the behavior's)")
+    p.add_argument("--robot", default=None,
+                   help="robot name or robot TOML file (default: the behavior's)")
     p.add_argument("--controller", default="hqp", choices=CONTROLLER_NAMES)
     p.add_argument("--host", default="127.0.0.1", help="interface to serve on")
     p.add_argument("--port", type=int, default=8080, help="port (default 8080)")

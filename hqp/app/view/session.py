@@ -37,6 +37,7 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
+from hqp import robots
 from hqp.app.run import BehaviorRun, _Meter
 from hqp.behaviors.behavior import Behavior
 from hqp.behaviors.loader import library_names
@@ -221,6 +222,8 @@ class ViewSession:
             raise UnknownName("behavior", behavior, self.behaviors)
         if controller not in CONTROLLER_NAMES:
             raise UnknownName("controller", controller, CONTROLLER_NAMES)
+        if robot is not None:
+            robots.check(robot)
         self.robot_name = robot
         self.controller_name = controller
         self.realtime = bool(realtime)
@@ -375,8 +378,10 @@ class ViewSession:
         index = len(self.runs) + 1
         path = self.record_dir / f"inputs_{index:02d}_{name}.jsonl"
         handle = path.open("w")
-        behavior, ctrl, robot = prepare(name, robot=self.robot.name,
-                                        controller=self.controller_name, inputs=path)
+        # the session's robot: --robot (a name or a robot file), else the first behavior's
+        source = self.robot_name if self.robot_name is not None else self.robot.name
+        behavior, ctrl, robot = prepare(name, robot=source, controller=self.controller_name,
+                                        inputs=path)
         if self.diagnostics != getattr(ctrl, "diagnostics", self.diagnostics):
             ctrl.feasibility = Diagnostics(ctrl.tolerance, ctrl.singular_tolerance,
                                            self.diagnostics)
