@@ -50,20 +50,12 @@ JOINT_VELOCITY_SCALE = 0.5
 
 BACKEND = "native"
 """QP backend of the HQP controller in the scenarios: the native step (the default
-controller's), since session 12's thin-set pass (a failed level QP sends the solve to a
-second pass absorbing the carried rows active over the optimal sets above). Measured with
-``hqp compare --all --json --controllers hqp`` (session 12): 0 safe-mode steps in every
-scenario, screwgun's hand 0.0030 cm from its goal (session 10 on the native step: 2
-safe-mode steps and 32 cm; on DAQP through the Python step: 0.003 cm). Before: DAQP through
-the Python step (quadprog's basis solves were found suboptimal on some real problems,
-tests/test_solver_real.py).
+controller's). A level QP that fails sends the solve to a second pass absorbing the carried
+rows active over the optimal sets above, so the scenarios run without safe-mode steps.
 
-With the servo's torque-rate level (:data:`MAX_TORQUE_RATE`, the presets' default since
-session 17), measured with ``hqp compare --all --json --controllers hqp``: every scenario's
-largest per-step torque change 4.0 N m (without it 23-278 N m), no fall (without it
-``screwgun`` fell in one of three runs: the closed loop in conflict is chaotic, see
-docs/scenarios.md), joints past a limit by 0.0020 rad at most (without it 0.11-0.26 rad in
-``box-grab`` and ``screwgun``)."""
+The servo's torque-rate level (:data:`MAX_TORQUE_RATE`, the presets' default) is on: it
+keeps the scenarios' per-step torque changes at its band where the levels in conflict
+switch their active bounds (figures with their command: docs/results/experiments.md)."""
 
 
 @dataclass

@@ -1,7 +1,7 @@
 """Metrics of a scenario run, computed from its recorded trace.
 
-The definitions are those of the command-line contract (docs/architecture.md,
-"Contract: the command line"):
+The definitions are those of the command-line contract (docs/reference/contracts.md,
+the JSON sections):
 
 - ``cog_error_max_mm``: the largest horizontal distance of the centre of
   gravity from its goal over the run [mm];

@@ -4,7 +4,7 @@ The law (``prioritized_torques``, ``LawLevel``, ``LawSolution``): ``law.py``; th
 form (``law_problem``, ``floating_base_metric``): ``multicontact.py``; activation zones, support
 polygon, centre of pressure: ``zones.py``; ``NullSpaceController`` (the servo with a
 ``NullSpaceResolver``): ``resolver.py``; the standing controllers by name:
-:mod:`hqp.control.presets`. Derivation and measured results: docs/nullspace.md.
+:mod:`hqp.control.presets`. Derivation and measured results: docs/design/nullspace.md.
 """
 
 from hqp.control import nullspace as _nullspace

@@ -1,7 +1,7 @@
 """Priority levels: an ordered stack of tasks, built into solver levels apart from the solve.
 
 A :class:`Stack` holds any number of levels (default: one per :class:`~hqp.tasks.base.Category`,
-in the order of docs/architecture.md "Levels of a control step": physics, contact and actuation
+in the order of docs/concepts/levels.md "Levels of a control step": physics, contact and actuation
 limits, joint limits, collision, balance, operational, posture). Tasks that share a level are
 stacked into one :class:`hqp.solver.Level`, each task's rows scaled by ``sqrt(weight)``; a strict
 hierarchy ignores any scaling between levels, so weights only trade tasks of the same level.
@@ -628,9 +628,8 @@ class Stack:
     def ramp_keep(self, entry: _TaskEntry, t: float) -> float:
         """``1 - s`` of a task ramping in at ``t`` (the share of its offsets its rows keep).
 
-        In ``[0, 1]``: the minimum-jerk polynomial exceeds 1 by up to 2e-15 just below the
-        ramp's end (rounding; 339 of 200001 fractions in ``[0.999, 1]``), which the native
-        step's ``set_ramp`` refuses (session 23: the squat-jump's run met one).
+        In ``[0, 1]``: the minimum-jerk polynomial exceeds 1 by a rounding error (about
+        2e-15) just below the ramp's end, which the native step's ``set_ramp`` refuses.
         """
         return min(max(1.0 - min_jerk((t - entry.added_at) / entry.ramp_time), 0.0), 1.0)
 

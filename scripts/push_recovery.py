@@ -52,7 +52,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--repeats", type=int, default=1,
                    help="simulations per probed force (seeds 0..K-1 of --init-q-std): a force "
                         "is survived when all K survived; survival near the threshold flips "
-                        "with rounding, so one run per force samples it (docs/study.md)")
+                        "with rounding, so one run per force samples it "
+                        "(docs/results/push-recovery.md)")
     p.add_argument("--init-q-std", type=float, default=None,
                    help="initial joint-angle perturbation [rad] of each repeat (default with "
                         "--repeats > 1: 1e-4)")

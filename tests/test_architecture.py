@@ -1,4 +1,4 @@
-"""The import graph of ``hqp/`` and ``comparisons/`` against docs/architecture.md.
+"""The import graph of ``hqp/`` and ``comparisons/`` against docs/concepts/architecture.md.
 
 Every module is parsed with :mod:`ast` (nothing is imported). An import of a project module
 is an edge of the graph, wherever it stands: at module level, inside a function (or a
@@ -9,7 +9,7 @@ literal name (or of a literal prefix plus an expression) counts as an import of 
 
 Checked here:
 
-- every module belongs to one layer of docs/architecture.md ("Layers as they are today");
+- every module belongs to one layer of docs/concepts/architecture.md ("Layers as they are today");
 - the layer rules, counting every import; the imports that break a rule today are listed in
   :data:`KNOWN_VIOLATIONS`, which may only shrink (a new violation fails, and so does an
   entry that no longer occurs);
@@ -268,15 +268,15 @@ def test_the_graph_is_read() -> None:
 
 def test_every_module_has_a_layer() -> None:
     missing = [m for m in find_modules(ROOT, PACKAGES) if layer_of(m) is None]
-    assert not missing, f"modules in no layer of docs/architecture.md: {missing}"
+    assert not missing, f"modules in no layer of docs/concepts/architecture.md: {missing}"
 
 
 def test_layer_rules() -> None:
     found = violations(IMPORTS)
     new = {key: lines for key, lines in found.items() if key not in KNOWN_VIOLATIONS}
-    assert not new, "imports that break a layer rule of docs/architecture.md:\n" + "\n".join(
-        f"  {source} -> {target} (lines {lines}): {rule}"
-        for (rule, source, target), lines in sorted(new.items()))
+    listed = "\n".join(f"  {source} -> {target} (lines {lines}): {rule}"
+                       for (rule, source, target), lines in sorted(new.items()))
+    assert not new, f"imports that break a layer rule of docs/concepts/architecture.md:\n{listed}"
     gone = KNOWN_VIOLATIONS - set(found)
     assert not gone, f"remove from KNOWN_VIOLATIONS, they no longer occur: {sorted(gone)}"
 

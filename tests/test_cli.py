@@ -1,6 +1,6 @@
 """The ``hqp`` command line: the contracts' JSON of compare, run and bench end to end, errors.
 
-The keys checked are those of docs/architecture.md, "Contract: the command line"; each
+The keys checked are those of docs/reference/contracts.md, the JSON sections; each
 command runs in its own process, as the checks outside the repository call it, with the
 shortest durations and sizes it accepts.
 """

@@ -257,17 +257,15 @@ def test_every_scenario_runs_end_to_end(name: str, tmp_path) -> None:
 @pytest.mark.slow
 @pytest.mark.parametrize("name", ["box-grab", "screwgun"])
 def test_the_hqp_rows_of_box_grab_and_screwgun_at_full_length(name: str) -> None:
-    """docs/scenarios.md's HQP rows (the servo's torque-rate level on by default): no fall, no
-    safe-mode step, at most issue 17's 5 N m of torque change per step (the level's own 4 N m
-    holds except where it yields to a level above it: box-grab cog-first 4.38 N m at 2.306 s,
-    the rate level in conflict beside the joint-limit level; without the level 277 N m),
-    box-grab's hands within 0.05 cm of their goals (session 17: 2e-8 cm). Joints past a
-    limit: box-grab within the measured 1.5e-3 rad (ankles); screwgun within the measured
-    1.3e-2 rad, issue 17's 1e-3 NOT met: session 18's solver fix (a dependent held row inside
-    its band takes no multiplier) changed the trajectory, and from 3.399 s the left shoulder
-    pitch's torque sits at its limit (19.9 N m) while its viability bound asks to brake: the
-    joint-limit level in conflict with the torque limits from 3.405 s, the joint 0.0125 rad
-    past its limit at 3.448 s (session 17 measured 2.0e-3 on the trajectory before the fix)."""
+    """docs/results/experiments.md's HQP rows (the servo's torque-rate level on by default): no
+    fall, no safe-mode step, at most issue 17's 5 N m of torque change per step (the level's
+    own 4 N m holds except where it yields to a level above it: box-grab cog-first 4.38 N m at
+    2.306 s, the rate level in conflict beside the joint-limit level), box-grab's hands within
+    0.05 cm of their goals. Joints past a limit: box-grab within the measured 1.5e-3 rad
+    (ankles); screwgun within the measured 1.3e-2 rad, issue 17's 1e-3 NOT met: from 3.399 s
+    the left shoulder pitch's torque sits at its limit (19.9 N m) while its viability bound
+    asks to brake: the joint-limit level in conflict with the torque limits from 3.405 s, the
+    joint 0.0125 rad past its limit at 3.448 s."""
     from comparisons import get_scenario
 
     result = get_scenario(name).run(controllers=["hqp"])

@@ -275,15 +275,15 @@ def test_native_needs_a_bundled_robot_model():
 
 
 def test_a_task_written_in_python_runs_on_the_python_path():
-    """The example of docs/control.md ("The native step"), run as written."""
+    """The example of docs/design/control.md ("The native step"), run as written."""
     import re
     from pathlib import Path
 
-    text = Path(__file__).resolve().parents[1].joinpath("docs", "control.md").read_text()
+    text = Path(__file__).resolve().parents[1].joinpath("docs", "design", "control.md").read_text()
     block = re.search(r"A task of your own.*?```python\n(.*?)```", text, re.S)
     assert block is not None
     scope: dict = {}
-    exec(compile(block.group(1), "docs/control.md", "exec"), scope)  # noqa: S102
+    exec(compile(block.group(1), "docs/design/control.md", "exec"), scope)  # noqa: S102
     controller = scope["controller"]
     assert "no native kernel" in controller.native.unsupported
     assert controller.native.steps == 0
@@ -402,7 +402,7 @@ def test_collision_kernels_run_natively(name):
     step: the same levels (1e-10), command, report, margins and pair names as the Python step.
     Some of the pairs start inside their influence distance, so the constraint level is in
     conflict at a degenerate vertex (sigma_min 0): there optima far apart have the same costs
-    (talos: 4.1e-3 N m apart from levels 1e-10 apart, session 12), and the command is held
+    (talos: 4.1e-3 N m apart from levels 1e-10 apart), and the command is held
     to the solver contract's costs (:func:`_same_optimum`)."""
     from hqp.model.world import Sphere, World
     from hqp.tasks.collision import ObstacleAvoidance, SelfCollision

@@ -50,7 +50,7 @@ def paper_humanoid():
 
 @pytest.mark.parametrize("full_posture", [False, True], ids=["feasible", "posture-conflict"])
 def test_floating_base_statement_on_two_feet(paper_humanoid, full_posture):
-    """docs/nullspace.md, statements 1-3, through both controllers on the same tasks.
+    """docs/design/nullspace.md, statements 1-3, through both controllers on the same tasks.
 
     1. every feasible level reaches the same task accelerations;
     2. HQP with final_metric = M, final_target = -M^-1 h on qdd returns the law's qdd;
@@ -403,7 +403,7 @@ def test_hand_reach_first_step_needs_a_centre_of_pressure_outside_the_feet():
     "and the robot collapses in 0.1 s. With the opt-in support and torque activation zones "
     "(support_zone=0.8, torque_zone=0.95) it holds for about 1.1 s, until the torso (78 N m) "
     "and head (8 N m) torque limits are reached and holding them at the top level makes the "
-    "solution jump between steps (lateral rocking of the feet). See docs/nullspace.md."))
+    "solution jump between steps (lateral rocking of the feet). See docs/design/nullspace.md."))
 @pytest.mark.parametrize("hierarchy", ["shared", "cog-first"])
 def test_hand_reach_under_the_law(hierarchy):
     """Seed 003, sec. 5 under the law: no fall, joint limits never violated, no clipping."""
@@ -430,7 +430,7 @@ def test_hand_reach_first_second_under_the_law_with_limit_zones(hierarchy):
     No fall, no joint past its limit (the papers' joint-limit zones at the top), no torque
     clipping, the centre of gravity over the feet, the hand on its way (about 1 m from its
     target at the start). Beyond about 1.1 s the torso and head torque limits break it (see
-    docs/nullspace.md and the xfail test above).
+    docs/design/nullspace.md and the xfail test above).
     """
     from hqp.sim.run import simulate
 

@@ -417,7 +417,7 @@ def test_what_the_native_law_does_not_run_is_the_python_laws(setting, why):
 def test_python_law_steps_between_native_ones():
     """A task ramping in, and the step after the safe command, are the Python law's; the steps
     after them are native again (and the ramp's last steps equal the Python law's), the
-    decaying-offset blend out of the safe command included (since session 17)."""
+    decaying-offset blend out of the safe command included."""
     from hqp.tasks.posture import PostureTask
 
     robot, native, python = _controllers("g1", diagnostics="residuals")

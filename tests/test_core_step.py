@@ -243,7 +243,7 @@ def test_a_native_step_allocates_nothing_once_sized(name):
         assert np.isfinite(core.tau).all()
 
 
-# a strict xfail until session 15: 7 of the 20 checked steps allocated in LevelQP::proxqp
+# formerly a strict xfail: 7 of the 20 checked steps allocated in LevelQP::proxqp
 # (ProxQP's own workspace, the native QP's last resort) after every DAQP retry of one level
 # failed; the first pass now tries DAQP's cheap attempts only and sends such a level to the
 # absorbing pass, which solves it with DAQP (ProxQP, still allocating, is now reached only

@@ -1,5 +1,5 @@
 """The papers' law on welded feet (``python -m comparisons.law_conditions``): what it reproduces
-of seed 003's Figures 4-5 and where it stops (docs/comparison.md)."""
+of seed 003's Figures 4-5 and where it stops (docs/results/comparison.md)."""
 
 from __future__ import annotations
 

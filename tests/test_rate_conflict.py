@@ -1,5 +1,5 @@
 """A torque-rate level in conflict, recorded: g1, the centre of mass sent 5 cm forward in
-0.4 s (``tests/test_sim_conflict.py``), t = 0.549 s of the unperturbed run on session 21's CPU.
+0.4 s (``tests/test_sim_conflict.py``), t = 0.549 s of the unperturbed run on an AMD EPYC.
 
 Seven levels: physics, contact limits, the servo's torque-rate level (4 N m around the last
 torques), joint limits (viability bounds on the accelerations), balance, operational,
@@ -7,8 +7,8 @@ posture. The contact limits let no torque change within the rate band: the rate 
 conflict, and the least-squares optimum of its violations spreads them over every joint, the
 right wrist roll's 0.8 N m share among them. On its 4e-4 kg m^2 that is 19556 rad/s^2: the
 joint-limit level below cannot act, and in the closed loop the wrist passed its limit by
-0.31 rad (until session 24: the joint limits' recovery deceleration now stops it at its limit
-in the steps after; the one-step acceleration stays). Every solver finds the same optimum (the
+0.31 rad before the joint limits had a recovery deceleration (it now stops the wrist at its
+limit in the steps after; the one-step acceleration stays). Every solver finds the same optimum (the
 formulation, not a solver, does this).
 """
 

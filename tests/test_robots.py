@@ -444,7 +444,7 @@ def test_erd_generated_urdf_equals_source(name: str) -> None:
 def test_generated_files_follow_the_installation(tmp_path, monkeypatch):
     # Two environments with the same example-robot-data share the generated-files directory;
     # the MJCF names the meshes by absolute path, so each installation gets its own files
-    # (before session 19 a second venv read the first one's meshes, and failed once it was gone).
+    # (otherwise a second venv reads the first one's meshes, and fails once it is gone).
     from hqp.robots import DATA_DIR
     from hqp.robots.erd import erd_robots_dir
     from hqp.robots.urdf import load_file

@@ -335,13 +335,13 @@ def _pushed(force, angle_deg):
                          ids=["forward-275N", "lateral-325N"])
 def test_standing_survives_pushes_below_the_band_where_survival_is_chaotic(force, angle):
     # Between about 287 N and 375 N forward (350 N and 375 N lateral) survival is not a
-    # function of the force: it flips with rounding (session 21, 5 s runs, 0.1 s pushes at
-    # 0.3 s; the same code and packages on another CPU, or an extra module imported before the
-    # run, turn a survival into a slow fall and back; forward 312.5 N falls at 3.65 s where
-    # 325 N and 337.5 N survive; 1e-4 rad of initial joint noise, seeds 0-3, makes 287.5 N,
-    # 325 N forward and 350 N, 362.5 N lateral fall in one or two runs of four). Session 19's
-    # "largest survived" 325 N and 362.5 N were one sample each of that band. Below it every
-    # run survived: 275 N forward and 325 N lateral, unperturbed and in 4 seeds each.
+    # function of the force: it flips with rounding (5 s runs, 0.1 s pushes at 0.3 s; the same
+    # code and packages on another CPU, or an extra module imported before the run, turn a
+    # survival into a slow fall and back; forward 312.5 N falls at 3.65 s where 325 N and
+    # 337.5 N survive; 1e-4 rad of initial joint noise, seeds 0-3, makes 287.5 N, 325 N forward
+    # and 350 N, 362.5 N lateral fall in one or two runs of four), so a bisection's "largest
+    # survived" is one sample of that band (docs/results/push-recovery.md). Below it every run
+    # survived: 275 N forward and 325 N lateral, unperturbed and in 4 seeds each.
     m = _pushed(force, angle)
     assert not m["fell"] and m["clip_count"] == 0 and m["safe_mode_steps"] == 0, m
 
@@ -349,8 +349,8 @@ def test_standing_survives_pushes_below_the_band_where_survival_is_chaotic(force
 @pytest.mark.slow
 def test_a_two_second_window_misses_a_slow_fall():
     # Why the push-recovery study's runs last 5 s: inside the chaotic band (above) a pushed
-    # robot can stand for seconds and then fall (session 21: 312.5 N forward falls at 3.65 s;
-    # session 19's machine: 337.5 N at 2.17 s). Which force of the band does so depends on
+    # robot can stand for seconds and then fall (312.5 N forward fell at 3.65 s on one machine,
+    # 337.5 N at 2.17 s on another). Which force of the band does so depends on
     # rounding, so this looks for one among four and stops at the first.
     falls = []
     for force in (312.5, 325.0, 337.5, 350.0):

@@ -4,8 +4,7 @@ allows and an unreachable hand goal, on every bundled robot (slow: MuJoCo).
 What a strict hierarchy owes its user there: no safe-mode step, no joint past its limit, a
 command an actuator can follow (per-step torque change under the stated 5 N m at 1 ms).
 The controllers are the defaults: the servo's torque-rate level (4 N m per step) is on in
-every preset since session 17; until then these tests needed it and the approach to the
-braking curve opted in (docs/control.md).
+every preset (docs/design/control.md).
 """
 
 import numpy as np
@@ -58,17 +57,17 @@ def _check(log, model, conflicting, jump_xfail=None):
 
 
 G1_COM_JUMP = (
-    "rounding-dependent (sessions 21 and 24, AMD EPYC): at 0.549 s of the unperturbed run the "
+    "rounding-dependent (measured on an AMD EPYC): at 0.549 s of the unperturbed run the "
     "torque-rate level is in conflict with the contact limits (once): the step is 5.18 N m "
     "(4 N m of rate band and its least-squares violation; 5.98 N m in one of 10 runs with 1e-6 rad "
     "of initial joint noise, the others 4.0-4.01), over the stated 5 N m. Its spread of the "
-    "violation also threw the right wrist roll to 20 rad/s and past its limit by 0.31 rad until "
-    "session 24's recovery deceleration (now 6e-6 rad, tests/test_tasks_joint_limits.py). Open: "
+    "violation also throws the right wrist roll to 20 rad/s, which the joint limits' recovery "
+    "deceleration stops at its limit (6e-6 rad, tests/test_tasks_joint_limits.py). Open: "
     "issue 17, tests/test_rate_conflict.py")
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("name", robots.NAMES)  # talos: 5.6 s of CPU (32 s in session 13)
+@pytest.mark.parametrize("name", robots.NAMES)  # talos: a few seconds of CPU
 def test_a_centre_of_mass_move_faster_than_the_support_allows(name):
     """The CoM goal 5 cm forward in 0.4 s (a min-jerk peak of 1.8 m/s^2, more than the soles'
     centre of pressure allows): the balance level in conflict."""

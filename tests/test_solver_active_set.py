@@ -278,7 +278,7 @@ def test_a_dependent_held_row_inside_its_band_takes_no_multiplier(impl):
     """Held rows v1 <= 0 and -v1 <= 5 (dependent: the same direction), the level asking
     v = (-1, 0). The guess holding both gives v = (0, 0) (or (-5, 0)), where the row solved
     for has the wrong sign and the other lies inside its band. Letting the inactive row take
-    the multiplier (NNLS on both, sessions 9 to 17) accepted that non-optimal point; the
+    the multiplier (NNLS on both, as an earlier version did) accepted that non-optimal point; the
     verified minimiser is (-1, 0) with no row held, in the reference and the native core."""
     level = LevelRows(np.eye(2), np.array([-1.0, 0.0]), np.zeros((0, 2)), np.zeros(0),
                       np.zeros(0), np.zeros(0), np.zeros(0))

@@ -38,8 +38,8 @@ def test_recorded_step_matches_the_python_basis_algorithm(index):
     The last (posture) level: the contract's 1e-6. It is
     ill-conditioned on these steps (more rows than free directions, sigma_min 0): a 1e-15
     change of the levels above moves it by ~1e-5 relative, and the Python backends differ
-    there among themselves by up to 2.0e-6 (reach, paper-humanoid, session 12; 3.9e-7
-    before), which is then the bound; 1e-9 is not a property
+    there among themselves by up to 2.0e-6 (reach, paper-humanoid), which is then the bound;
+    1e-9 is not a property
     any implementation has there. x: to 1e-8 (or the backends' spread) where every level
     is well conditioned, i.e. where the minimum-norm optimum is a continuous function of
     the data.
@@ -54,7 +54,7 @@ def test_recorded_step_matches_the_python_basis_algorithm(index):
     allowed = np.maximum(np.where(costs[0] > 1.0, 1e-8, 1e-9) * scale, spread) + 1e-15
     np.testing.assert_array_less(gap[:-1], allowed[:-1])
     # the contract's 1e-6, or the Python backends' own spread where that is wider (on the
-    # last level: reach@paper-humanoid step 3, 2.0e-6 relative among them in session 12)
+    # last level: reach@paper-humanoid step 3, 2.0e-6 relative among them)
     np.testing.assert_array_less(gap, np.maximum(1e-6 * scale, spread) + 1e-15)
     # the reports' sigma_min: the same numbers (0 where below the rank threshold) where the
     # two points have the same active rows (rows within 1e-7 of a bound at one point can be
@@ -307,7 +307,7 @@ THIN = Path(__file__).resolve().parent / "data" / "thin_set_levels.npz"
 
 def _thin_levels(name: str = "hand_reach_shared") -> list[Level]:
     """Built levels of the HQP controller at steps of ``hqp compare`` on the native step
-    (paper-humanoid, session 10): ``hand_reach_shared`` at t = 49 ms, where the native
+    (paper-humanoid): ``hand_reach_shared`` at t = 49 ms, where the native
     solve failed; ``screwgun`` (``cog-first``) at t = 1.878 s, where every solver of the
     native step's fallbacks but the cascade failed."""
     with np.load(THIN) as d:
@@ -341,7 +341,7 @@ def test_the_native_solver_solves_a_thin_feasible_set(name):
     is left a set of no width that DAQP's dual steps report infeasible. Native, the Python
     oracle on DAQP and on quadprog agree on every level's cost but the last to the contract's
     1e-6. The last (posture, sigma_min 0: more rows than free directions) is not compared:
-    there the exact methods spread over 5 % (session 12, screwgun: native 27468, Python
+    there the exact methods spread over 5 % (screwgun: native 27468, Python
     basis on DAQP 27463 and on quadprog 27408, ProxQP 27441, the cascades 26074; the native
     solve takes the absorbing pass, the oracle's quadprog last resort spares it that pass):
     the weak directions of issue 17, not a tolerance of this fix."""

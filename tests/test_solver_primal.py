@@ -10,7 +10,7 @@ Hessians and degenerate starts, and level QPs recorded at paper-humanoid's steps
 331 N push (``tests/data/thin_level_qps.npz``: the operational level, a rank-3 objective over
 14-18 free directions under 106 carried rows, 4-19 of them active at the start), on which
 DAQP, ProxQP, OSQP and quadprog failed or returned points 1e-6 outside the rows
-(docs/control.md).
+(docs/design/control.md).
 """
 
 from __future__ import annotations
@@ -153,9 +153,9 @@ def test_the_primal_qp_allocates_nothing():
 
 
 def test_a_pushed_step_that_failed_the_native_solve_now_solves():
-    """paper-humanoid 0.238 s after a 331 N push (0.1 s at 0.3 s): until session 23 the native
-    solve ended with "level 5: the native QP (DAQP) returned a non-finite solution" (and the
-    step went to the Python step). The primal method now solves the level DAQP could not
+    """paper-humanoid 0.238 s after a 331 N push (0.1 s at 0.3 s): without the primal method the
+    native solve ends with "level 5: the native QP (DAQP) returned a non-finite solution" (and
+    the step goes to the Python step). The primal method now solves the level DAQP could not
     (in the absorbing pass); the levels' costs are the Python basis algorithm's on its exact
     backends to the contract, or within their own spread below the balance level: on this
     thin set quadprog and DAQP end 17 % apart on the operational level (ProxQP returns no

@@ -1,4 +1,4 @@
-"""Bit-reproducible solves across processes (docs/architecture.md: simulation metrics are
+"""Bit-reproducible solves across processes (docs/reference/contracts.md: simulation metrics are
 identical on repeated runs).
 
 The wheel's AVX builds of proxsuite sum in an order that follows the heap addresses of

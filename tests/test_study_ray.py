@@ -2,8 +2,8 @@
 
 One module fixture runs everything (Ray starts twice, about 7 s each): the push map of the
 null-space law on paper-humanoid, 4 directions, bisection from 400 N to a 200 N bracket,
-1 s runs (the robot falls 0.4-0.9 s after a push it does not survive: the 0.6 s runs used
-before session 19 saw no fall backwards with MuJoCo 4.0.1), with 2 workers;
+1 s runs (the robot falls 0.4-0.9 s after a push it does not survive: 0.6 s runs miss the
+fall backwards with MuJoCo 4.0.1), with 2 workers;
 the same study resumed from its records without one direction, with a task that kills its
 worker on that direction's first simulation, then resumed again; a tiny grid over the noise
 seed; the push map again with 1 worker.

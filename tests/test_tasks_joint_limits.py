@@ -433,8 +433,8 @@ def test_approach_time_is_checked() -> None:
 
 
 def test_an_overspeed_joint_is_braked_at_its_recovery_deceleration(arm: RobotModel) -> None:
-    """``recovery``: a joint thrown far past its braking curve (g1's wrist in a conflict,
-    session 24: 20 rad/s on a 50 rad/s^2 bound) stops at its limit, braked at what stops it
+    """``recovery``: a joint thrown far past its braking curve (g1's wrist in a conflict:
+    20 rad/s on a 50 rad/s^2 bound) stops at its limit, braked at what stops it
     there; a viable state's bounds are those without it, and recovery 0 or ``None`` changes
     nothing."""
     A_max, B, R = 50.0, 25.0, 3e4

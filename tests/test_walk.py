@@ -146,8 +146,8 @@ def test_walk_makes_ten_footsteps_forward() -> None:
 
 
 @pytest.mark.slow
-# a strict xfail from session 12 to 15: one step 0.000548 N m past a torque limit, clipped by
-# the servo; gone since the hierarchy's first pass tries DAQP's cheap attempts only (a level
+# formerly a strict xfail: one step 0.000548 N m past a torque limit, clipped by the servo;
+# gone since the hierarchy's first pass tries DAQP's cheap attempts only (a level
 # they cannot solve goes to the absorbing pass instead of the relaxed-bound and ProxQP retries)
 def test_walk_meets_the_torque_limits_without_the_servo_clipping() -> None:
     assert _walk().metrics["controller_clipped_steps"] == 0
@@ -155,7 +155,7 @@ def test_walk_meets_the_torque_limits_without_the_servo_clipping() -> None:
 
 @pytest.mark.slow
 def test_walk_changes_its_torques_by_less_than_5_nm_per_step() -> None:
-    # the servo's torque-rate level, on by default since session 17 (4 N m per 1 ms step;
+    # the servo's torque-rate level, on by default (4 N m per 1 ms step;
     # measured 4.1 N m: the level yields a little to the contact limits above it at a
     # touchdown); 52 N m without it, when a single-support swing drove the arms to their
     # acceleration bounds
@@ -167,7 +167,8 @@ def test_walk_changes_its_torques_by_less_than_5_nm_per_step() -> None:
 @pytest.mark.slow
 def test_walk_on_g1_makes_ten_footsteps_forward() -> None:
     # the robot's own foot spacing and centre-of-mass height (Unitree G1, 29 DoF); the servo
-    # clips a few steps at a torque limit on this robot (with PlaCo's plan too: docs/behaviors.md)
+    # clips a few steps at a torque limit on this robot (with PlaCo's plan too:
+    # docs/results/behaviors.md)
     from hqp.app.run import run_behavior
 
     result = run_behavior("walk", robot="g1", duration=WALK_DURATION)

@@ -4,8 +4,8 @@
 [--duration S] [--contacts unilateral|welded]`` and ``hqp compare --all``.
 ``--contacts welded`` holds the soles to the floor with MuJoCo weld equalities (the seed
 papers' rigid feet) instead of MuJoCo's unilateral contacts; every run carries
-``"contacts"``. The table (or, with ``--json``, the JSON object of docs/architecture.md
-"Contract: the command line", alone) goes to stdout; progress goes to stderr. With
+``"contacts"``. The table (or, with ``--json``, the JSON object of docs/reference/contracts.md
+the JSON sections, alone) goes to stdout; progress goes to stderr. With
 ``--all --json`` stdout holds one object
 ``{"scenarios": [<one contract object per scenario>]}``.
 

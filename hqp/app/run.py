@@ -479,7 +479,7 @@ def _events_summary(events: list[dict[str, Any]], most: int = 4) -> list[str]:
 
 
 def _event_words(word: str, yields_to: int | None) -> str:
-    """Return what an event word means, in a sentence (docs/behaviors.md)."""
+    """Return what an event word means, in a sentence (docs/concepts/report.md)."""
     if word == "conflict":
         return ("in conflict with a higher level" if yields_to is None
                 else f"in conflict with level {yields_to}")

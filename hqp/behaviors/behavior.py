@@ -55,7 +55,7 @@ class FeasibilityEvent:
         t: Simulated time [s].
         phase: Active phase.
         task: Task name.
-        status: The words of the feasibility report (docs/behaviors.md): ``"conflict"``
+        status: The words of the feasibility report (docs/concepts/report.md): ``"conflict"``
             (flagged: in conflict with level ``yields_to``, or with a higher level when the
             controller does not say which), ``"infeasible"`` (the task's own rows cannot
             hold, whatever the levels above do: only with ``diagnostics="full"``),

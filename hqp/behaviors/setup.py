@@ -36,7 +36,7 @@ def build_controller(
     max_joint_acceleration: float | None = None,
     max_torque_rate: float | None = MAX_TORQUE_RATE,
 ) -> Any:
-    """Build a whole-body controller holding only the constraint levels of docs/architecture.md.
+    """Build a whole-body controller holding only the constraint levels of docs/concepts/levels.md.
 
     :func:`hqp.control.presets.constraint_controller`: the constraint levels of the standing
     controllers (physics with both soles as contacts, friction / centre-of-pressure / torque

@@ -2,8 +2,8 @@
 
 A suite is a function ``suite(*, quick: bool, progress: Callable[[str], None])
 -> list[dict]`` returning one row per configuration (at least ``robot``,
-``solver``, ``levels``, ``n``, ``median_ms``, ``p95_ms``; docs/architecture.md,
-"Contract: the command line"). Suites are listed in :data:`SUITE_MODULES`
+``solver``, ``levels``, ``n``, ``median_ms``, ``p95_ms``; docs/reference/contracts.md,
+the JSON sections). Suites are listed in :data:`SUITE_MODULES`
 (imported lazily, so a suite's heavy dependencies load only when it runs) or
 registered with :func:`register_suite`.
 """

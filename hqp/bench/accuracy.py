@@ -1,8 +1,8 @@
 """Accuracy against the solver contract: each level's cost over the tightest solution.
 
 The cost of level ``k`` at ``x`` is ``||A_k x - b_k||^2 + ||dist(C_k x, [lower_k, upper_k])||^2``
-(docs/architecture.md, "Contract: the solver"). Among the solutions that several solvers return for
-the same levels, the *tightest* is the lexicographic minimum of their cost vectors (level 0
+(docs/reference/contracts.md, "The solver"). Among the solutions that several solvers return
+for the same levels, the *tightest* is the lexicographic minimum of their cost vectors (level 0
 first). Ties are decided on the *residual norms* ``sqrt(cost)``: two solutions tie on a level
 when their residual norms there differ by at most ``1e-9 * max(1, residual)``.
 

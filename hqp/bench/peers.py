@@ -2,7 +2,7 @@
 
 * :class:`DaqpHierarchy`: DAQP's native hierarchical mode (:mod:`hqp.bench.daqp_hier`:
   ``daqp.solve(..., break_points=...)``), the level data stacked at every solve. It solves
-  a *different* problem (docs/architecture.md): each level minimises the row-normalised
+  a *different* problem (docs/reference/contracts.md): each level minimises the row-normalised
   violations ``sum_i dist(c_i x, [l_i, u_i])^2 / ||c_i||^2``;
   it is timed beside the contract's algorithms and its level-cost excess against the contract
   is reported.

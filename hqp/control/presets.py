@@ -83,7 +83,7 @@ def viable_joint_limits(robot: Robot, model: RobotModel,
     fixed-base estimate) for states thrown past its braking curve; velocity bounds are
     approached over 20 ms, the braking curve over ``approach_time`` (opt-in; 0.02 s is the
     measured choice). Why these choices (and what was
-    measured against the alternatives): docs/control.md, "The standing joint limits".
+    measured against the alternatives): docs/design/control.md, "The standing joint limits".
     """
     fixed_base = max_acceleration_from_torques(model, margin=0.5)
     qdd_max = np.clip(fixed_base, 5.0, max_joint_acceleration)
@@ -302,13 +302,13 @@ def standing_stack(
             braking assumption is half of it, or what the active supports allow).
         braking_approach_time: Time over which the joint-limit bounds approach the braking
             curve [s] (0: the discrete bound alone; 0.02 is the measured choice,
-            docs/control.md).
+            docs/design/control.md).
         redundancy_damping: Weight of a joint damping ``qdd = -d v`` (a posture task named
             ``damping`` with ``kp = 0``) inside the operational level (0: none). A task of
             that level whose goal is out of reach leaves a residual that its least squares
             spends along the directions it barely controls (``1 / sigma`` per unit of
             residual); the damping regularises that level (damped least squares) without
-            moving its equilibria (it asks nothing at rest). Opt-in: docs/control.md, "An
+            moving its equilibria (it asks nothing at rest). Opt-in: docs/design/control.md, "An
             unreachable goal".
         redundancy_damping_gain: Its damping ``d`` [1/s].
 

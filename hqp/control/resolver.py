@@ -136,9 +136,8 @@ class HQPResolver:
         native step, whose rows are the Python rows to rounding). With the ``"native"``
         backend the fallbacks are then tried first and this resolver's own native solver
         (the same C++ solver, warm started from another memory) only after them: a failed
-        native solve has already spent its retries (up to a second on the thin feasible sets
-        of a conflict before the cap of session 10, issue 17); on hand-reach ``shared`` DAQP
-        solved such levels in 8 ms (tests/data/thin_set_levels.npz).
+        native solve has already spent its retries (its QP's iterations are capped), and
+        DAQP solves such levels quickly (tests/data/thin_set_levels.npz).
         """
         self.last_solution = None
         failure = ""

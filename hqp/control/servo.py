@@ -75,7 +75,7 @@ a few ms of torque rise time follows)."""
 RATE_AFTER = (Category.PHYSICS, Category.CONTACT_LIMITS)
 """The constraint sub-levels the torque-rate level is placed after: the actuator's torque-rate
 bound sits with its torque limits, above the joint limits and the collision distances (a
-joint-limit level in conflict below it cannot turn into a torque step; docs/control.md)."""
+joint-limit level in conflict below it cannot turn into a torque step; docs/design/control.md)."""
 
 
 class Controller(abc.ABC):

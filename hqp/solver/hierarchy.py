@@ -1,6 +1,6 @@
 """The front of the strict lexicographic solver: validation, final levels, dispatch.
 
-Both algorithms return the contract's solution (docs/architecture.md, "Contract:
+Both algorithms return the contract's solution (docs/reference/contracts.md, "Contract:
 the solver"): level ``k`` minimises
 
     ||A_k x - b_k||^2 + ||dist(C_k x, [lower_k, upper_k])||^2
@@ -332,7 +332,7 @@ def solve(
     rank_tol: float = 1e-9,
     algorithm: str = "basis",
 ) -> Solution:
-    """Solve a strict lexicographic hierarchy (docs/architecture.md, "Contract: the solver").
+    """Solve a strict lexicographic hierarchy (docs/reference/contracts.md, "The solver").
 
     Level ``k`` minimises ``||A_k x - b_k||^2 + ||dist(C_k x, [lower_k, upper_k])||^2``
     over the minimisers of levels ``0..k-1``; then ``(x - final_target)^T
@@ -352,7 +352,7 @@ def solve(
             ``"cascade"`` (one QP per level over the full ``x``, the baseline).
 
     Returns:
-        The :class:`Solution` (``x`` of shape ``(n,)``, one report per level, timings).
+        The lexicographic optimum (``x`` of shape ``(n,)``, one report per level, timings).
 
     Raises:
         InvalidLevel: Malformed level (message names the level and the field).

@@ -10,8 +10,8 @@ run in parallel (:class:`PushMapPlan`).
 
 Near a direction's threshold, whether a push is survived is not a function of the force: it
 flips with rounding (another CPU, another import order) and with initial perturbations far
-below any sensor's resolution (docs/study.md). ``repeats`` (``[push]``) makes each probe
-``repeats`` simulations, seeds ``0 .. repeats-1`` of a perturbation the study sets
+below any sensor's resolution (docs/results/push-recovery.md). ``repeats`` (``[push]``) makes
+each probe ``repeats`` simulations, seeds ``0 .. repeats-1`` of a perturbation the study sets
 (``init_q_std``, ``init_v_std`` or measurement noise): a force counts as survived only when
 every repeat survived, as fallen when any repeat fell, so the bracket is that of a
 conservative threshold, and the repeats of a probe run in parallel.

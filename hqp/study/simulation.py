@@ -65,9 +65,8 @@ STANDING = {
 }
 """Parameters of a standing simulation and their defaults (the others are gains).
 
-The 5 s default leaves a pushed robot 4.7 s to fall: with 2 s (before session 19) a
-337.5 N forward push on paper-humanoid counted as survived although the robot fell at
-2.17 s; 4 s and 6 s runs find the same largest survived pushes at 0 and 90 degrees.
+The 5 s default leaves a pushed robot 4.7 s to fall: a 2 s run misses slow falls
+(docs/results/push-recovery.md).
 """
 
 COMMON = ("target", "controller", "robot", "duration", "backend")

@@ -24,7 +24,7 @@ if TYPE_CHECKING:
 
 
 class Category(enum.IntEnum):
-    """Default priority categories, highest first (docs/architecture.md, seed Figure 9).
+    """Default priority categories, highest first (docs/concepts/levels.md, seed Figure 9).
 
     The first four are the constraint sub-levels; a category is a default
     level, not a cage: any task may be placed at any level of a stack.

@@ -45,8 +45,10 @@ class CoMTask(VectorTrackingTask):
         horizontal: Control only ``x, y`` (2 rows) instead of ``x, y, z``.
         name: Task name.
         weight: Weight within its level.
-        kp, kv, max_velocity, max_acceleration: PD reference
-            (:class:`~hqp.tasks.reference.PDReference`, units m, m/s, m/s^2).
+        kp: Stiffness of the PD reference [1/s^2].
+        kv: Damping [1/s] (``None``: ``2 sqrt(kp)``, critical damping).
+        max_velocity: Saturation of the corrective velocity [m/s].
+        max_acceleration: Saturation of the feedback acceleration [m/s^2].
 
     Goal: :meth:`set_goal` with ``(2,)`` or ``(3,)`` [m] (e.g. from
     :func:`support_center`), optional goal velocity and acceleration, or

@@ -12,7 +12,7 @@ A :class:`Contact` gives two sets of rows over ``x = [qdd | f_1 | ... | f_k]``:
   (:meth:`RobotModel.frame_drift`), ``v_c`` the frame velocity (world axes),
   and ``e`` the pose error to the reference placement captured at activation
   (``[p - p_ref; log3(R R_ref^T)]``, world axes). Default gains are zero: the
-  plain rigid-contact condition ``J_c qdd + dJ_c v = 0`` of docs/architecture.md.
+  plain rigid-contact condition ``J_c qdd + dJ_c v = 0`` of docs/concepts/levels.md.
   Inactive: the slot is held at zero, ``f_c = 0``. Both give ``size`` rows, so
   the row count does not change when a contact switches.
 

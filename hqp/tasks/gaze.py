@@ -47,7 +47,10 @@ class GazeTask(VectorGoalTask):
         axis: Gaze ray in the frame's coordinates ``(3,)`` (normalised; default ``+x``).
         name: Task name (default ``"gaze"``).
         weight: Weight within its level.
-        kp, kv, max_velocity, max_acceleration: PD reference (image units ~ rad).
+        kp: Stiffness of the PD reference [1/s^2].
+        kv: Damping [1/s] (``None``: ``2 sqrt(kp)``, critical damping).
+        max_velocity: Saturation of the corrective velocity [image units/s, ~ rad/s].
+        max_acceleration: Saturation of the feedback acceleration [image units/s^2].
 
     Goal: :meth:`set_goal` with the target point ``(3,)`` [m] in the world and
     optional target velocity and acceleration; :meth:`set_trajectory` or

@@ -47,9 +47,14 @@ class HybridTask(PoseTask):
             along the vertical, slide in the plane).
         name: Task name (default: ``"hybrid_" + frame``).
         weight: Weight within its level.
-        kp, kv, max_velocity, max_acceleration, max_angular_velocity,
-            max_angular_acceleration: PD reference of the motion rows (see
-            :class:`~hqp.tasks.pose.PoseTask`).
+        kp: Stiffness of the motion rows' PD reference [1/s^2] (as :class:`PoseTask`).
+        kv: Damping [1/s] (``None``: ``2 sqrt(kp)``).
+        max_velocity: Saturation of the translation's corrective velocity [m/s].
+        max_acceleration: Saturation of the translation's feedback acceleration [m/s^2].
+        max_angular_velocity: Saturation of the rotation's corrective velocity [rad/s]
+            (``None``: the translation's number).
+        max_angular_acceleration: Saturation of the rotation's feedback acceleration
+            [rad/s^2] (``None``: the translation's number).
 
     Goals: :meth:`set_goal` (placement, as :class:`PoseTask`; only the
     motion-controlled directions matter) and :meth:`set_force` ``(k,)`` [N,

@@ -121,7 +121,10 @@ class OrientationTask(TrackingTask):
         frame: Frame name.
         name: Task name (default: the frame's name).
         weight: Weight within its level.
-        kp, kv, max_velocity, max_acceleration: PD reference (rad, rad/s, rad/s^2).
+        kp: Stiffness of the PD reference [1/s^2].
+        kv: Damping [1/s] (``None``: ``2 sqrt(kp)``, critical damping).
+        max_velocity: Saturation of the corrective velocity [rad/s].
+        max_acceleration: Saturation of the feedback acceleration [rad/s^2].
 
     Goal: :meth:`set_goal` with a rotation ``(3, 3)`` (``R_world_goal``) and an
     optional world angular velocity and acceleration ``(3,)``; or

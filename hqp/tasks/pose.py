@@ -34,10 +34,14 @@ class PoseTask(TrackingTask):
         frame: Frame name.
         name: Task name (default: the frame's name).
         weight: Weight within its level.
-        kp, kv: PD gains [1/s^2], [1/s].
-        max_velocity, max_acceleration: Translation saturations [m/s], [m/s^2].
-        max_angular_velocity, max_angular_acceleration: Rotation saturations
-            [rad/s], [rad/s^2] (``None``: same as the translation's).
+        kp: Stiffness of the PD reference [1/s^2] (translation and rotation).
+        kv: Damping [1/s] (``None``: ``2 sqrt(kp)``, critical damping).
+        max_velocity: Saturation of the translation's corrective velocity [m/s].
+        max_acceleration: Saturation of the translation's feedback acceleration [m/s^2].
+        max_angular_velocity: Saturation of the rotation's corrective velocity [rad/s]
+            (``None``: the translation's number).
+        max_angular_acceleration: Saturation of the rotation's feedback acceleration
+            [rad/s^2] (``None``: the translation's number).
 
     Goal: :meth:`set_goal` with a ``pin.SE3`` or ``(4, 4)`` placement and
     optional velocity and acceleration ``(6,)`` ``[linear; angular]`` (world);

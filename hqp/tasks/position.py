@@ -46,7 +46,10 @@ class PositionTask(VectorTrackingTask):
         axes: Selected world axes (``"xz"``, indices, or ``None`` for all).
         name: Task name (default: the frame's name).
         weight: Weight within its level.
-        kp, kv, max_velocity, max_acceleration: PD reference (m, m/s, m/s^2).
+        kp: Stiffness of the PD reference [1/s^2].
+        kv: Damping [1/s] (``None``: ``2 sqrt(kp)``, critical damping).
+        max_velocity: Saturation of the corrective velocity [m/s].
+        max_acceleration: Saturation of the feedback acceleration [m/s^2].
 
     Goal: :meth:`set_goal` with the selected coordinates ``(k,)`` [m].
 

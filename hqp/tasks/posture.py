@@ -89,7 +89,10 @@ class PostureTask(VectorTrackingTask):
         weights: Diagonal of ``W`` ``(k,)`` (positive; default ones).
         name: Task name.
         weight: Weight within its level.
-        kp, kv, max_velocity, max_acceleration: PD reference on ``e``.
+        kp: Stiffness of the PD reference [1/s^2].
+        kv: Damping [1/s] (``None``: ``2 sqrt(kp)``, critical damping).
+        max_velocity: Saturation of the corrective velocity [rad/s, on ``e``].
+        max_acceleration: Saturation of the feedback acceleration [rad/s^2].
 
     Goal: :meth:`set_goal` with ``(k,)`` positions of the selected joints or a
     ``{joint: value}`` mapping that covers them; :meth:`set_configuration`

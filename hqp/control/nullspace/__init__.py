@@ -8,7 +8,7 @@
 - :mod:`~hqp.control.nullspace.native`: the law's native step (the controller's default on a
   bundled robot).
 
-Derivations and measured results: docs/nullspace.md.
+Derivations and measured results: docs/design/nullspace.md.
 """
 
 from hqp.control.nullspace.law import EIG_TOL, PHI_TOL, LawLevel, LawSolution, prioritized_torques

@@ -9,7 +9,7 @@ with ``Lambda_k|prec(k)^-1`` inverted on its range only when singular (eq. 22-23
 its feet, the same recursion runs in torque space with ``M^-1`` replaced by the
 support-consistent ``Phi = (S N_s) M^-1 (S N_s)^T`` (Sentis, Park, Khatib, IEEE T-RO 2010).
 The derivation, the whitened implementation and what links the law to the HQP solution are
-in docs/nullspace.md.
+in docs/design/nullspace.md.
 """
 
 from __future__ import annotations
@@ -186,7 +186,7 @@ def prioritized_torques(
         internal_forces: ``"none"`` (the plain law, no torque in ``null(Phi)``) or
             ``"min-norm"`` (add the internal-force torque that minimises ``||f||``).
         method: ``"whitened"`` (default: eq. 11-23 in inertia-whitened coordinates, see the
-            docs/nullspace.md; singular values instead of squared ones, so about twice the
+            docs/design/nullspace.md; singular values instead of squared ones, so about twice the
             digits) or ``"literal"`` (eq. 15-21 as written, the recursion of eq. 19 on
             ``(na, na)`` projectors).
         support_weights: For ``"min-norm"``: a function of the support forces ``f (ns,)``

@@ -2,7 +2,7 @@ r"""The law on a standing robot: a built stack as the law's matrices, and back (
 
 Support-consistent dynamics: with ``N_s = I - Jbar_s J_s`` the support's null space,
 ``Phi = (S N_s) M^-1 (S N_s)^T`` ``(na, na)`` plays the role of ``M^-1`` and the task Jacobians
-become ``J* = J M^-1 N_s^T S^T Phi^+`` (docs/nullspace.md). Here: which rows of a
+become ``J* = J M^-1 N_s^T S^T Phi^+`` (docs/design/nullspace.md). Here: which rows of a
 :class:`~hqp.stack.BuiltStack` the law uses (:func:`law_problem`), the HQP tie-break that
 reproduces the law (:func:`floating_base_metric`), the load-weighted internal forces
 (:func:`utilization_weights`) and the law's decision vector ``x = [qdd | f]``
@@ -35,7 +35,7 @@ def floating_base_metric(
 
     With the HQP torque map ``tau = T x + t0`` (:func:`hqp.tasks.dynamics.torque_map`) and
     ``W = Phi + P_null(Phi)``, returns ``Q = T^T W T`` and ``x_t = -Q^+ T^T W t0``, so that
-    ``(x - x_t)^T Q (x - x_t) = tau^T W tau + const`` (docs/nullspace.md, statement 3). On a
+    ``(x - x_t)^T Q (x - x_t) = tau^T W tau + const`` (docs/design/nullspace.md, statement 3). On a
     fixed base ``W = M^-1`` and the pair is equivalent to ``final_metric = M``,
     ``final_target = -M^-1 h`` on ``qdd``.
 

@@ -204,7 +204,7 @@ class NullSpaceController(WholeBodyController):
         singular_tolerance: Relative eigenvalue threshold of the SINGULAR status.
         damping: Joint damping of the safe command [N m s/rad].
         final_metric: Accepted for call compatibility; unused (the law's tie-break is fixed:
-            least ``tau^T Phi tau``, docs/nullspace.md).
+            least ``tau^T Phi tau``, docs/design/nullspace.md).
         final_target: Accepted for call compatibility; unused.
         diagnostics: ``"full"`` (per-task eigenvalues and ``yields_to``) or ``"residuals"``.
         support_zone: Fraction of each contact's centre-of-pressure box that bounds the

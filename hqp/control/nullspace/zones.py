@@ -4,7 +4,7 @@ The law has no inequalities. Once the motion enters a zone, equality rows that h
 zone's border become the top task level and the law is applied again: the centre of pressure
 of the support inside a shrunk support polygon (:func:`support_moment_rows`), each joint's
 torque inside a fraction of its limit. Off by default (the plain law); measured effects on
-hand-reach in docs/nullspace.md.
+hand-reach in docs/design/nullspace.md.
 """
 
 from __future__ import annotations
@@ -223,7 +223,7 @@ def constraint_zones(
       :func:`support_moment_rows` hold it at the closest point of that zone;
     * the torques: a joint whose torque exceeds ``zones.torque * tau_max`` gets the row
       ``tau_j(qdd) = +-zones.torque * tau_max_j`` (``tau = Phi^+ S (qdd - qdd_0) + tau_int``,
-      docs/nullspace.md; the internal-force part ``tau_int`` is taken from the last pass).
+      docs/design/nullspace.md; the internal-force part ``tau_int`` is taken from the last pass).
 
     The law is applied again with these rows, up to ``zones.passes`` times, adding the
     joints that still leave their zone (rows are only added within a step).

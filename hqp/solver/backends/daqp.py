@@ -47,11 +47,11 @@ violation only moves a bound by that much."""
 
 QUICK_ATTEMPTS = tuple(a for a in ATTEMPTS if a[1] == EPS_PROX_SEQUENCE[0])
 """The attempts of :meth:`DaqpBackend.solve_quick`: the small proximal weight at both primal
-tolerances. The larger weights cost 1-4 ms each where they are reached (the failing level
-QPs of a pushed robot) and succeed on about 1 % of their calls (``_ext.qp_stats`` on the
-native twin, paper-humanoid pushed by 331 N, session 15): the basis algorithm's first pass
-tries these only, and a level they cannot solve sends the solve to the absorbing second pass
-(:meth:`hqp.solver.basis.BasisAlgorithm.solve`), which has every attempt."""
+tolerances. The larger weights are expensive where they are reached (the failing level QPs
+of a pushed robot) and rarely succeed there (``_ext.qp_stats`` counts them): the basis
+algorithm's first pass tries these only, and a level they cannot solve sends the solve to
+the absorbing second pass (:meth:`hqp.solver.basis.BasisAlgorithm.solve`), which has every
+attempt."""
 
 _DAQP_INF = 1e30
 """DAQP's infinite bound."""
