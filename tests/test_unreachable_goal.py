@@ -7,7 +7,7 @@ position. Claims, over the last 0.5 s of a 3.5 s run: every actuated joint slowe
 0.05 rad/s, the hand no farther from its goal than where it started, the trunk within
 0.35 rad of its standing orientation, every torque under 90 % of its limit, the per-step torque
 change under 0.5 N m, and no task above the operational level in conflict. Measurements and
-the mechanism: docs/control.md, "An unreachable goal".
+the mechanism: docs/design/control.md, "An unreachable goal".
 """
 
 import numpy as np
@@ -89,7 +89,7 @@ def _xfail(name, reason):
 
 @pytest.mark.slow
 @pytest.mark.parametrize("name", [
-    # measured (docs/control.md, "An unreachable goal"): the hand level's residual, about
+    # measured (docs/design/control.md, "An unreachable goal"): the hand level's residual, about
     # kp |e| = 12 m/s^2 held, is spent by its least squares along directions it barely
     # controls (the other arm, through the balance level): joints at their velocity bounds
     _xfail("paper-humanoid", "measured: the left shoulder yaw and roll swing at 2.0 rad/s at "
@@ -105,7 +105,7 @@ def test_the_default_standing_controller_with_an_unreachable_hand_goal(name):
 
 
 DAMPED = {"redundancy_damping": 3e-3, "redundancy_damping_gain": 10.0}
-"""The operational level's joint damping measured in docs/control.md."""
+"""The operational level's joint damping measured in docs/design/control.md."""
 
 
 @pytest.mark.slow

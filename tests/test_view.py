@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+import hqp
 from hqp.app.cli import main
 from hqp.app.view import measure
 from hqp.app.view.page import ViewError, check_port, goal_text, task_table
@@ -138,7 +139,10 @@ def test_page_in_headless_chromium(tmp_path):
             page = browser.new_page(viewport={"width": 1280, "height": 800})
             fields = measure.open_reach(page, f"http://127.0.0.1:{port}")  # clicks "reach"
             goal = [float(f.input_value()) for f in fields]
-            assert goal == pytest.approx([0.55, -0.22, 1.10])  # the behavior's default
+            # the behavior's default, relative to the robot (the viewer's default robot)
+            dims = hqp.robots.load("paper-humanoid").dimensions()
+            default = dims["right_shoulder"] + dims["arm_length"] * np.array([0.7, -0.05, -0.3])
+            assert goal == pytest.approx(default, abs=1e-3)
             # drag the red sphere's vertical arrow up with the mouse (seed 001, Figure 14)
             _, dragged = measure.drag_goal(page, 60, 1280, 800)
             assert dragged[2] > goal[2] + 0.03

@@ -393,7 +393,7 @@ class WalkPlanner:
             if key in _PLACO_ONLY:
                 raise BehaviorFileError(f"{where}: planner.{key}: a parameter of PlaCo's planner, "
                                         f"which hqp no longer uses; set {_PLACO_ONLY[key]} "
-                                        "instead (see docs/behaviors.md)")
+                                        "instead (see docs/results/behaviors.md)")
             if key not in WALK_DEFAULTS:
                 raise BehaviorFileError(f"{where}: planner.{key}: unknown key; expected one of "
                                         f"{', '.join(sorted(WALK_DEFAULTS))}")

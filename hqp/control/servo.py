@@ -64,7 +64,7 @@ WORK_BUDGET = 1000
 in the level QPs' work units: a DAQP iteration 1, a primal active-set iteration 25. Where a
 step's solve spends it, the levels already solved stay exact, each level whose QP it cuts keeps
 the best feasible point reached, and the report's notes say which levels were cut. A measured
-choice (docs/control.md, "The work budget"): the smallest of those tried that leaves the pushed
+choice (docs/concepts/engine.md, "The work budget"): the smallest of those tried that leaves the pushed
 closed loops where the unbounded solve leaves them."""
 
 MAX_TORQUE_RATE = 4000.0

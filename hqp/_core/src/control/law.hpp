@@ -1,7 +1,7 @@
 // The papers' prioritised null-space torque law in the native core: the C++ twin of
 // hqp.control.nullspace.law.prioritized_torques (method="whitened", internal forces "none"
 // or "min-norm"; seed 003 eq. 11-23 with the support-consistent form of Sentis, Park and
-// Khatib 2010, derivation in docs/nullspace.md), and the law's control step (NativeLaw):
+// Khatib 2010, derivation in docs/design/nullspace.md), and the law's control step (NativeLaw):
 // the rows of a NativeStep's kernels (its model pass, no solve), the papers' joint-limit
 // activation zones (hqp.tasks.joint_limit_zone), the law, x = [qdd | f] and the report's
 // numbers, in one call.

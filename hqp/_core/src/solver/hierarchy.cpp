@@ -494,7 +494,7 @@ std::string Hierarchy::solve_pass(Index n, Index user_levels, bool absorb) {
         // the first pass tries DAQP's cheap attempts only: where they fail, the absorbing pass
         // (with every attempt) is the remedy for thin feasible sets (issue 17)
         // a feasible point of the QP, where PrimalQP starts if DAQP's first attempt fails in
-        // the absorbing pass (docs/control.md):
+        // the absorbing pass (docs/design/control.md):
         // the levels above's solution (y = 0) with the level's slacks at their clamp
         MapV v0 = slot.v0.vec(nq);
         v0.setZero();

@@ -51,7 +51,7 @@ using CRowMatRef =
 /// (after n changes without progress, the one of the smallest row index: Bland's rule, so
 /// that a degenerate vertex cannot cycle). Every iterate is feasible, so it never reports a
 /// feasible problem infeasible (DAQP's dual iterations do, on the hierarchy's thin feasible
-/// sets: docs/control.md). The hierarchy knows a feasible point of each level QP (the
+/// sets: docs/design/control.md). The hierarchy knows a feasible point of each level QP (the
 /// levels above's solution, the level's slacks at their clamp), which is where it starts.
 /// Returns true only where the KKT conditions hold at the returned v (the multipliers of W
 /// non-negative within 1e-9 of |H v + g|). Fixed-capacity storage: no allocation once
