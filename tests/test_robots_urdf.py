@@ -337,3 +337,22 @@ def test_new_humanoid_walks_4_steps(name: str) -> None:
     result = run_behavior("walk", robot=str(NEW[name]), duration=8.0)
     assert not result.fell, result.fall_reason
     assert len(result.steps) >= 4
+
+
+@pytest.mark.slow
+def test_the_viewer_serves_a_humanoid_from_its_robot_file(tmp_path) -> None:
+    import urllib.request
+
+    from hqp.app.view import measure
+
+    pytest.importorskip("viser")
+    port = measure.free_port()
+    proc = measure.start_view(port, tmp_path / "view.log", behavior="reach",
+                              robot=str(NEW["romeo"]))
+    try:
+        with urllib.request.urlopen(f"http://127.0.0.1:{port}/", timeout=60) as reply:
+            assert reply.status == 200
+            assert "<html" in reply.read().decode(errors="replace").lower()
+        assert "romeo" in (tmp_path / "view.log").read_text().lower()
+    finally:
+        assert measure.stop_view(proc) == 0
