@@ -59,13 +59,14 @@ if TYPE_CHECKING:
     from hqp.solver import HierarchicalSolver, Solution
     from hqp.tasks.base import Task
 
-WORK_BUDGET = 1000
+WORK_BUDGET = 0
 """Default work budget of the native step's solve (``WholeBodyController(work_budget=...)``),
-in the level QPs' work units: a DAQP iteration 1, a primal active-set iteration 25. Where a
-step's solve spends it, the levels already solved stay exact, each level whose QP it cuts keeps
-the best feasible point reached, and the report's notes say which levels were cut. A measured
-choice (docs/concepts/engine.md, "The work budget"): the smallest of those tried that leaves the pushed
-closed loops where the unbounded solve leaves them."""
+in the level QPs' work units (a DAQP iteration 1, a primal active-set iteration 25); 0: none.
+Where a step's solve spends a budget, the levels already solved stay exact, each level whose QP
+it cuts keeps the best feasible point reached, and the report's notes say which levels were
+cut. Off by default: the budgets measured so far either leave the worst steps at several
+milliseconds or change the closed loops of the library (docs/concepts/engine.md, "The work
+budget")."""
 
 MAX_TORQUE_RATE = 4000.0
 """Measured choice of the bound on the rate of the hierarchy's torques [N m/s]: 4 N m per 1 ms

@@ -167,8 +167,10 @@ def connect(address: str | None = None, workers: int | None = None) -> ModuleTyp
     if ray.is_initialized():
         return ray
     if address is None:
-        ray.init(num_cpus=workers or os.cpu_count() or 1, include_dashboard=False,
-                 log_to_driver=False, configure_logging=False)
+        # address="local": a new instance on this machine, never a cluster Ray finds on its
+        # own (RAY_ADDRESS, or the address file a `ray start` leaves in /tmp/ray)
+        ray.init(address="local", num_cpus=workers or os.cpu_count() or 1,
+                 include_dashboard=False, log_to_driver=False, configure_logging=False)
     else:
         check_reachable(address)
         try:
