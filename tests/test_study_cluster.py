@@ -35,8 +35,11 @@ def free_port() -> int:
 
 
 def environment() -> dict[str, str]:
+    # one authentication mode for the head, the worker node and the driver: a local Ray
+    # instance (tests/test_study_ray.py) leaves a token in ~/.ray, which a head started
+    # afterwards requires of nodes that do not know they should send it
     env = dict(os.environ, RAY_USAGE_STATS_ENABLED="0", OMP_NUM_THREADS="1",
-               OPENBLAS_NUM_THREADS="1")
+               OPENBLAS_NUM_THREADS="1", RAY_AUTH_MODE="disabled")
     env.pop("PYTHONPATH", None)  # the nodes do not see hqp: the driver hands it over
     return env
 
@@ -64,9 +67,16 @@ def cluster():
         subprocess.run([str(RAY), "start", "--head", "--node-ip-address=127.0.0.1",
                         f"--port={port}", "--num-cpus=0", "--include-dashboard=false", *common],
                        env=env, check=True, capture_output=True, timeout=180)
-        subprocess.run([str(RAY), "start", f"--address=127.0.0.1:{port}",
-                        "--node-ip-address=127.0.0.1", "--num-cpus=1", *common],
-                       env=env, check=True, capture_output=True, timeout=180)
+        # the head may still be coming up: the worker node's join is tried a few times
+        for attempt in range(4):
+            joined = subprocess.run([str(RAY), "start", f"--address=127.0.0.1:{port}",
+                                     "--node-ip-address=127.0.0.1", "--num-cpus=1", *common],
+                                    env=env, capture_output=True, text=True, timeout=180)
+            if joined.returncode == 0:
+                break
+            time.sleep(3.0)
+        else:
+            pytest.fail(f"the worker node could not join the head: {joined.stderr[-1500:]}")
         yield f"127.0.0.1:{port}"
     finally:
         stop(temp)
