@@ -83,8 +83,8 @@ def _claims(robot, c, log, start, goal, R0):
     return figures, failed
 
 
-def _xfail(name, reason):
-    return pytest.param(name, marks=pytest.mark.xfail(strict=True, reason=reason))
+def _xfail(name, reason, strict=True):
+    return pytest.param(name, marks=pytest.mark.xfail(strict=strict, reason=reason))
 
 
 @pytest.mark.slow
@@ -93,7 +93,8 @@ def _xfail(name, reason):
     # kp |e| = 12 m/s^2 held, is spent by its least squares along directions it barely
     # controls (the other arm, through the balance level): joints at their velocity bounds
     _xfail("paper-humanoid", "measured: the left shoulder yaw and roll swing at 2.0 rad/s at "
-           "the end, the torque steps 2.9 N m"),
+           "the end, the torque steps 2.9 N m; in another process (the whole suite on two "
+           "workers) the same run met every bound: the outcome is marginal", strict=False),
     _xfail("g1", "measured: the left wrist and both shoulder yaws at 8-10 rad/s, torque steps "
            "of 4 N m (the rate band)"),
     _xfail("talos", "measured: the left arm at 1.3 rad/s, arm_right_2 at its torque limit"),

@@ -10,7 +10,7 @@ namespace hqp {
 namespace {
 
 constexpr double kTiny = std::numeric_limits<double>::min();  // np.finfo(float).tiny
-constexpr double kEps = std::numeric_limits<double>::epsilon();
+constexpr double kMachineEps = std::numeric_limits<double>::epsilon();
 constexpr unsigned kThin = Eigen::ComputeThinU | Eigen::ComputeThinV;
 
 /// Sized (rows, cols): a resize only where the shape changes.
@@ -26,7 +26,7 @@ void shape(VectorXd& v, Index n) {
 void svd_lstsq(const Eigen::JacobiSVD<MatrixXd>& svd, const CVecRef& rhs, VecRef y,
                VecRef tmp) {
   const VectorXd& s = svd.singularValues();
-  const double cut = kEps * double(std::max(svd.rows(), svd.cols())) * (s.size() ? s(0) : 0.0);
+  const double cut = kMachineEps * double(std::max(svd.rows(), svd.cols())) * (s.size() ? s(0) : 0.0);
   Index rank = 0;
   while (rank < s.size() && s(rank) > cut) ++rank;
   y.setZero();
