@@ -52,7 +52,6 @@ import numpy as np
 from hqp.bench.accuracy import ExcessTracker, level_costs
 from hqp.bench.interleave import Samples, interleaved
 from hqp.bench.placo_step import PlacoStanding
-from hqp.bench.recorded import DATA_DIR, load
 from hqp.bench.tsid_step import TsidStanding
 from hqp.bench.worker import PeerUnavailable
 from hqp.control.presets import standing_controller, standing_nullspace_controller
