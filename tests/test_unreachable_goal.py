@@ -1,5 +1,5 @@
 """A hand goal out of reach, held: the robot should come to rest, balanced, the hand stopped at
-the nearest point it can reach (issue 45; slow: MuJoCo).
+the nearest point it can reach (slow: MuJoCo).
 
 The standing controller (``hqp.standing_controller``), a :class:`PositionTask` on the right
 hand added at 0.05 s in the operational level with the goal 0.8 m ahead of the hand's standing
