@@ -67,7 +67,7 @@ import numpy as np
 
 from comparisons.common import DT, JOINT_VELOCITY_SCALE, Hierarchy, braking_acceleration
 from hqp.bench.placo_step import WORKER
-from hqp.bench.worker import start
+from hqp.bench.worker import start_setup
 from hqp.controller import Command, FeasibilityReport
 from hqp.errors import InvalidInput
 from hqp.model import RobotModel
@@ -237,12 +237,7 @@ class PlacoController:
                     self._posture[task.name] = (task, np.array(task.goal_at(0.0).position))
                 else:
                     self._tracked.append((task, kind))
-        self.worker = start("placo", WORKER, python)
-        try:
-            info = self.worker.request(setup)
-        except Exception:
-            self.worker.close()
-            raise
+        self.worker, info = start_setup("placo", WORKER, setup, python)
         self.placo_version: str = info["placo_version"]
         self.pinocchio_version: str = info["pinocchio_version"]
         self.step_time: list[float] = []

@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from hqp.bench.worker import start
+from hqp.bench.worker import start_setup
 from hqp.robots import Robot
 
 WORKER = Path(__file__).with_name("placo_worker.py")
@@ -115,12 +115,7 @@ class PlacoStanding:
                                posture_kp=posture_kp, friction=friction,
                                sole_margin=sole_margin)
         self.robot = robot
-        self.worker = start("placo", WORKER, python)
-        try:
-            info = self.worker.request(setup)
-        except Exception:
-            self.worker.close()
-            raise
+        self.worker, info = start_setup("placo", WORKER, setup, python)
         self.placo_version: str = info["placo_version"]
         self.pinocchio_version: str = info["pinocchio_version"]
         self.nq: int = info["nq"]

@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from hqp.bench.worker import start
+from hqp.bench.worker import start_setup
 from hqp.robots import Robot
 from hqp.tasks.joint_limits import max_acceleration_from_torques
 
@@ -82,12 +82,7 @@ class TsidStanding:
     """
 
     def __init__(self, robot: Robot, dt: float = 1e-3, python: Path | None = None) -> None:
-        self.worker = start("tsid", WORKER, python)
-        try:
-            info = self.worker.request(setup_message(robot, dt))
-        except Exception:
-            self.worker.close()
-            raise
+        self.worker, info = start_setup("tsid", WORKER, setup_message(robot, dt), python)
         self.tsid_version: str = info["tsid_version"]
         self.pinocchio_version: str = info["pinocchio_version"]
         self.wall: list[float] = []

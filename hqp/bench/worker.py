@@ -142,3 +142,23 @@ def start(name: str, script: Path, python: Path | None = None) -> Worker:
         raise PeerUnavailable(f"{p.title} environment at {python.parent.parent} cannot run "
                               f"its worker ({exc}; re-create it with: {p.command})") from None
     return worker
+
+
+def start_setup(name: str, script: Path, setup: dict[str, Any],
+                python: Path | None = None) -> tuple[Worker, dict[str, Any]]:
+    """Start a peer's worker (:func:`start`) and send it its ``setup`` request.
+
+    Returns:
+        The worker and the setup's reply; the worker is closed if the setup fails.
+
+    Raises:
+        PeerUnavailable: As :func:`start`.
+        WorkerError: The setup request failed (the worker's message).
+
+    """
+    worker = start(name, script, python)
+    try:
+        return worker, worker.request(setup)
+    except Exception:
+        worker.close()
+        raise
