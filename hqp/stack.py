@@ -57,7 +57,7 @@ import numpy as np
 from hqp.errors import HQPError, InvalidInput, InvalidLevel, UnknownName
 from hqp.model.layout import ContactType
 from hqp.solver import Level
-from hqp.tasks.base import Category, Rows, Task
+from hqp.tasks.base import Category, Edits, Rows, Task, Tracked, edited
 from hqp.tasks.contact import ContactLimits
 from hqp.tasks.reference import (  # min_jerk: also importable as hqp.stack.min_jerk
     MIN_JERK_PEAK_ACCELERATION,
@@ -86,7 +86,7 @@ class ContactMode(enum.Enum):
 
 
 @dataclass
-class _TaskEntry:
+class _TaskEntry(Tracked):
     task: Task
     level: int
     added_at: float
@@ -101,7 +101,7 @@ def _entry_level(entry: _TaskEntry) -> int:
 
 
 @dataclass
-class _ContactEntry:
+class _ContactEntry(Tracked):
     name: str
     frame: str
     kind: ContactType
@@ -234,6 +234,7 @@ class Stack:
         self._tasks: list[_TaskEntry] = []
         self._contacts: dict[str, _ContactEntry] = {}
         self._events: list[BlendEvent] = []
+        self._managed: tuple[int, dict[str, bool]] = (-1, {})  # (_self_managed)
         self._weak = [0.0] * len(names)
 
     # -- levels -----------------------------------------------------------------------------
@@ -276,6 +277,7 @@ class Stack:
             raise InvalidInput(f"Stack.set_weak_threshold: level {self.level_names[k]!r}: "
                                f"expected a finite threshold >= 0, got {threshold!r}")
         self._weak[k] = value
+        edited()
 
     def level_of(self, level: int | str | Category | None, task: Task | None = None) -> int:
         """Resolve a level given as an index, a name, a category, or ``None`` (task's category).
@@ -378,6 +380,7 @@ class Stack:
                        0.0 if t is None else ramp, contact,
                        goal_ramp_pending=t is not None and ramp > 0.0)
         )
+        edited()
 
     def remove(self, name: str, *, t: float = 0.0) -> Task:
         """Remove a task (a blend event: the controller interpolates its torques).
@@ -391,6 +394,7 @@ class Stack:
         """
         entry = self._entry(name)
         self._tasks.remove(entry)
+        edited()
         self._events.append(BlendEvent(float(t), f"task {name!r} removed"))
         return entry.task
 
@@ -580,7 +584,10 @@ class Stack:
                 return False
             if c.mode is ContactMode.INACTIVE and not self._self_managed(c.name):
                 return False
-        return not any(e.goal_ramp_pending or self._ramping(e, t) for e in self._tasks)
+        for e in self._tasks:  # (what _ramping says, inline: called at every step)
+            if e.goal_ramp_pending or (e.ramp_time > 0.0 and t < e.added_at + e.ramp_time):
+                return False
+        return True
 
     def native_ready(self, t: float) -> bool:
         """Whether the native step can run the step at ``t`` when :meth:`steady` does not hold.
@@ -615,13 +622,16 @@ class Stack:
                 self._unload_bound(c, model, t, x_prev, slot.start, layout.n)
         self._set_active_frames(self._active_frames())
         ramping = []
-        for entry in self._tasks:
-            if self._dropped(entry):
+        contacts = self._contacts
+        for entry in self._tasks:  # (what _dropped and _ramping say, inline: every step)
+            if (entry.contact is not None
+                    and contacts[entry.contact].mode is ContactMode.INACTIVE
+                    and not self._self_managed(entry.contact)):
                 continue
             if entry.goal_ramp_pending:
                 entry.goal_ramp_pending = False
                 _ramp_goal(entry.task, model, entry.ramp_time, t)
-            if self._ramping(entry, t):
+            if entry.ramp_time > 0.0 and t < entry.added_at + entry.ramp_time:
                 ramping.append(entry)
         return ramping
 
@@ -658,8 +668,11 @@ class Stack:
                 )
 
     def _active_frames(self) -> tuple[str, ...]:
-        return tuple(c.frame for c in self._contacts.values()
-                     if c.mode is not ContactMode.INACTIVE)
+        frames = []
+        for c in self._contacts.values():
+            if c.mode is not ContactMode.INACTIVE:
+                frames.append(c.frame)
+        return tuple(frames)
 
     def _set_active_frames(self, frames: tuple[str, ...]) -> None:
         for entry in self._tasks:
@@ -816,8 +829,19 @@ class Stack:
         return BuiltStack(levels, tuple(level_index), tuple(spans), all_rows, n)
 
     def _self_managed(self, name: str) -> bool:
-        """Whether a contact's tasks hold its slot at zero themselves when inactive."""
-        return self._owner(self._contacts[name]) is not None
+        """Whether a contact's tasks hold its slot at zero themselves when inactive.
+
+        Remembered until the next edit (:class:`~hqp.tasks.base.Edits`: adding or removing
+        a task is one): asked at every step of a stack with a released contact.
+        """
+        count, known = self._managed
+        if count != Edits.count:
+            known = {}
+            self._managed = (Edits.count, known)
+        managed = known.get(name)
+        if managed is None:
+            managed = known[name] = self._owner(self._contacts[name]) is not None
+        return managed
 
     def _contact_rows(
         self,

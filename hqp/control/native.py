@@ -41,7 +41,7 @@ from hqp.robots.robot import ROOT_JOINT, Robot
 from hqp.solver.level import Level
 from hqp.solver.solution import LevelReport, Solution
 from hqp.stack import BuiltStack, TaskSpan
-from hqp.tasks.base import Rows
+from hqp.tasks.base import Edits, Rows
 from hqp.tasks.centroidal import CentroidalMomentumTask
 from hqp.tasks.collision import ObstacleAvoidance, SelfCollision
 from hqp.tasks.com import CoMTask
@@ -156,6 +156,7 @@ class NativeStepMirror:
         self._error_handles: dict[int, int | None] = {
             id(task): handle for handle, task, _k in self._goals}
         self._error_handles.update((id(task), None) for task in model_errors)
+        self._source: ErrorSource | None = None  # (record_errors)
         self._contact_tasks = [t for t in stack.tasks if isinstance(t, Contact)]
         self._handles = {task.name: h for h, task in enumerate(stack.tasks)}
         self._f_max = {t.name: float(t.max_normal_force) for t in self._contact_tasks}
@@ -237,14 +238,16 @@ class NativeStepMirror:
             self._goals.append((handle, task, "orientation"))
         elif isinstance(task, (PositionTask, CoMTask, PostureTask, CentroidalMomentumTask)):
             handle = s.add_tracking(level, w, self._tracking_kernel(core, task))
-            self._goals.append((handle, task, "vector"))
+            self._goals.append((handle, task, "momentum" if isinstance(
+                task, CentroidalMomentumTask) else "vector"))
         elif isinstance(task, GazeTask):
             handle = s.add_gaze(level, w, core.GazeKernel(
                 self._frame(task.frame), task.axis, task._P, *_gains(task)))
             self._goals.append((handle, task, "vector"))
         elif isinstance(task, PoseTask):  # and HybridTask
             handle = s.add_pose(level, w, self._pose_kernel(core, task))
-            self._goals.append((handle, task, "pose"))
+            self._goals.append((handle, task, "hybrid" if isinstance(task, HybridTask)
+                                else "pose"))
         elif isinstance(task, InternalForcesTask):
             handle = s.add_internal_forces(level, w, self._internal_kernel(core, task))
             self._internal.append((handle, task, len(task.components(self._layout))))
@@ -351,7 +354,11 @@ class NativeStepMirror:
                                    task._v_index.astype(np.int32), scale, *_gains(task))
 
     def push_goals(self, t: float) -> None:
-        """Send every task's goal at time ``t`` (and the joint-limit braking, the obstacles).
+        """Send every goal that is a new sample at time ``t`` (and the per-step inputs).
+
+        A goal held (``set_goal``) is pushed once: the kernel keeps it until the task holds
+        another sample; a trajectory is sampled at every step. The internal forces', centres
+        of pressure's and obstacles' inputs are pushed at every step.
 
         Raises:
             InvalidInput: A goal the Python step refuses too (same message).
@@ -360,27 +367,50 @@ class NativeStepMirror:
         s = self.step_core
         pushed = self._pushed_goals
         for i, (handle, task, kind) in enumerate(self._goals):
-            if isinstance(task, CentroidalMomentumTask):
-                g = task._goal if task.trajectory is None else task.trajectory.sample(t)
-                if g is pushed[i]:
-                    continue
+            trajectory = task._trajectory
+            if trajectory is None:
+                if task._goal is pushed[i] and kind != "hybrid":
+                    continue  # the same (read-only) goal as the last push: in the kernel
+            elif trajectory is pushed[i]:
+                continue  # a bundled trajectory's end, held: pushed when it was reached
+            if kind == "momentum":
+                g = task._goal if task._trajectory is None else task._trajectory.sample(t)
                 pushed[i] = g
                 s.set_goal(handle, g.position, g.velocity, np.zeros_like(g.velocity))
                 continue
-            g = task.goal_at(t)
-            if g is pushed[i] and not isinstance(task, HybridTask):
-                continue  # the same (read-only) goal as the last push: in the kernel already
-            pushed[i] = g
+            # a bundled trajectory's samples are checked once (TrackingTask.goal_at)
+            g = trajectory.sample(t) if trajectory is not None and task._trusted \
+                else task.goal_at(t)
+            # after a bundled trajectory's end its sample is the goal held at rest, for ever
+            pushed[i] = trajectory if (trajectory is not None and task._trusted and kind !=
+                                       "hybrid" and t - trajectory.t0 >= trajectory.duration
+                                       ) else g
             if kind == "orientation":
                 s.set_orientation_goal(handle, g.position, g.velocity, g.acceleration)
-            elif kind == "pose":
-                s.set_pose_goal(handle, g.position, g.velocity, g.acceleration)
-                if isinstance(task, HybridTask):
-                    s.set_force(handle, task._force)
-            else:
+            elif kind == "vector":
                 s.set_goal(handle, g.position, g.velocity, g.acceleration)
+            else:  # a pose, a hybrid task's pose and force
+                s.set_pose_goal(handle, g.position, g.velocity, g.acceleration)
+                if kind == "hybrid":
+                    s.set_force(handle, task._force)
+        for handle, task, rows in self._internal:
+            s.set_internal_goal(handle, task.goal_of(rows))
+        for handle, task in self._cops:
+            s.set_cop_goal(handle, task.goal_at(t))
+        for handle, _task, obstacles, _names in self._distances:
+            for k, o in enumerate(obstacles or ()):
+                a, b = o.segment
+                s.set_obstacle(handle, k, a, b, o.velocity, o.radius)
+
+    def push_parameters(self) -> None:
+        """Send what changes with the stack's state: joint-limit braking, contact force bounds.
+
+        The braking of each joint-limit kernel, recomputed where what it depends on changed
+        (the supports, the bound's arrays); the normal-force bound of each contact (lowered
+        while it unloads). Called when the edit count moved (:class:`~hqp.tasks.base.Edits`).
+        """
+        s = self.step_core
         for i, (handle, task) in enumerate(self._braking):
-            # recomputed where what it depends on changed: the supports, the bound's arrays
             qdd = task.qdd_max
             key = (task._active_frames, task.airborne_braking, task.support_braking,
                    None if qdd is None else qdd.tobytes(), task.braking
@@ -396,14 +426,6 @@ class NativeStepMirror:
             if f != f_max[task.name]:
                 s.contact(self._contacts[task.name]).set_max_normal_force(f)
                 f_max[task.name] = f
-        for handle, task, rows in self._internal:
-            s.set_internal_goal(handle, task.goal_of(rows))
-        for handle, task in self._cops:
-            s.set_cop_goal(handle, task.goal_at(t))
-        for handle, _task, obstacles, _names in self._distances:
-            for k, o in enumerate(obstacles or ()):
-                a, b = o.segment
-                s.set_obstacle(handle, k, a, b, o.velocity, o.radius)
 
     def sync_ramps(self, ramping: list[Any], t: float, x_prev: np.ndarray | None) -> None:
         """Push the ramps of the tasks ramping in at ``t`` (``Stack.advance_native``).
@@ -480,24 +502,29 @@ class NativeStepMirror:
         self.step_core.step(q, v, self.dt)
         return self.step_core.x, self.step_core.tau
 
-    def record_errors(self, source: ErrorSource | None = None) -> None:
+    def record_errors(self, controller: Any = None) -> None:
         """Give each task the error of the last native step (what ``Task.error()`` returns).
 
         From its kernel; for a contact and the joint limits, from the Python model at the
-        state (logs and behaviors read them). With a ``source``, a task's error is fetched
-        when the task's ``error()`` is first called (``Task._fetch_error``; a control loop
-        that reads none pays for none); the distances' errors (and their pair names, an
-        attribute) are recorded at once.
+        state (logs and behaviors read them). With the ``controller`` that ran the step, a
+        task's error is fetched when the task's ``error()`` is first called after the step
+        (``Task._fetch_error``, through this mirror's :class:`ErrorSource` for that
+        controller: a control loop that reads none pays for none); the distances' errors
+        (and their pair names, an attribute) are recorded at once.
         """
         core = self.step_core
         for handle, task, _obstacles, names in self._distances:
             task.record_error(core.margins(handle), names)
-        if source is not None:
+        if controller is None:
+            for task in self._error_tasks:
+                self.record_error(task)
+            return
+        source = self._source
+        if source is None or source.controller is not controller:
+            source = self._source = ErrorSource(self, controller)
             for task in self._error_tasks:
                 task._error_source = source
-            return
-        for task in self._error_tasks:
-            self.record_error(task)
+        source.serial = controller.step_serial
 
     def quantity(self, name: str) -> np.ndarray | None:
         """Return a quantity of the last step's model pass (``RobotModel.provide``).
@@ -533,7 +560,8 @@ class NativeStepMirror:
         core = self.step_core
         if self._report_order is None:  # by built level, as Stack.build's spans
             self._report_order = sorted(enumerate(self._placements()), key=lambda e: e[1][2])
-        settings = (diagnostics.tolerance, diagnostics.singular_tolerance, diagnostics.full)
+        settings = (diagnostics.tolerance, diagnostics.singular_tolerance,
+                    diagnostics.mode == "full")
         if settings != self._report_settings:  # changed since the step: computed again
             core.set_report(*settings)
             core.compute_report()
@@ -682,20 +710,22 @@ def error_norms(tasks: Sequence[Any]) -> np.ndarray:
 
 
 class ErrorSource:
-    """The task errors of one native step of a controller, fetched when first read.
+    """Where the tasks of a native step fetch that step's error when it is first read.
 
-    ``Task._fetch_error`` calls :meth:`fetch`, which records the task's error from the
-    mirror (:meth:`NativeStepMirror.record_error`) only if that step is still the
-    controller's last one (its step ``serial``); otherwise the error was computed since, by a
-    Python step's rows or a later native step's source.
+    The tasks of a mirror hold it (``Task._error_source``) from the first step the mirror
+    runs for a controller; its ``serial`` is the controller's ``step_serial`` of the last
+    such step. ``Task._fetch_error`` calls :meth:`fetch` once per ``serial``, which records
+    the task's error from the mirror (:meth:`NativeStepMirror.record_error`) only if that
+    step is still the controller's last one; otherwise the error was computed since, by a
+    Python step's rows or by another mirror.
     """
 
     __slots__ = ("mirror", "controller", "serial")
 
-    def __init__(self, mirror: NativeStepMirror, controller: Any, serial: int) -> None:
+    def __init__(self, mirror: Any, controller: Any) -> None:
         self.mirror = mirror
         self.controller = controller
-        self.serial = serial
+        self.serial = -1
 
     def fetch(self, task: Any) -> None:
         """Record ``task``'s error of this step, if the step is the controller's last."""
@@ -816,6 +846,8 @@ class NativeEngine:
         self.mirror: NativeStepMirror | None = None
         self.unsupported: str | None = None
         self._signature: tuple[Any, ...] | None = None
+        self._key: tuple[Any, ...] | None = None  # what ready() checked at the last step
+        self._t = -np.inf  # the time of the last step
         self.steps = 0
         self.steady = True
         """Whether the stack was steady at the last :meth:`ready` (else: ramps, unloading)."""
@@ -833,12 +865,37 @@ class NativeEngine:
             ("work_budget", getattr(controller, "work_budget", None)))
 
     def ready(self, controller: Any, t: float) -> NativeStepMirror | None:
-        """Return the mirror to run this step, or ``None`` when the Python step must run it."""
-        stack = controller.stack
-        if controller.final_metric is not None or controller.final_target is not None:
+        """Return the mirror to run this step, or ``None`` when the Python step must run it.
+
+        A stack whose edit count (:class:`~hqp.tasks.base.Edits`), layout, torque-rate level
+        and work budget are those of the last step checked here runs on the same mirror with
+        nothing checked again: nothing the mirror copied can have changed (what a stack that
+        is not steady changes at every step, its ramps and unloading bounds, the controller
+        pushes after advancing it).
+        Otherwise the mirror is rebuilt if the stack's signature changed, the contacts'
+        activations are pushed, contact-aware tasks told the active contacts (a steady
+        stack: :meth:`~hqp.stack.Stack.advance_steady`) and the joint limits' braking and
+        the contacts' force bounds pushed (:meth:`NativeStepMirror.push_parameters`; a stack
+        that is not steady pushes them after advancing).
+        """
+        resolver = controller.resolver
+        if (getattr(resolver, "final_metric", None) is not None
+                or getattr(resolver, "final_target", None) is not None):
             return None
+        stack = controller.stack
+        key = (Edits.count, stack, controller.layout, controller.max_torque_rate is None,
+               controller.work_budget)
+        last_t, self._t = self._t, t
+        if key == self._key and self.steady and t >= last_t:
+            return self.mirror  # steady, unedited, later: steady still (ramps only end)
         self.steady = stack.steady(t)
         if not self.steady and not stack.native_ready(t):  # ramps and unloading: native
+            return None
+        if key == self._key:
+            return self.mirror
+        self._key = None
+        declared = stack.layout_contacts()
+        if [(c.name, c.frame, c.kind) for c in controller.layout.contacts] != declared:
             return None
         signature = self.signature(controller)
         if signature != self._signature:
@@ -851,4 +908,13 @@ class NativeEngine:
         mirror = self.mirror
         if mirror is None or mirror._layout is not controller.layout:
             return None
-        return mirror if mirror.sync_contacts() else None
+        if not mirror.sync_contacts():
+            return None
+        if self.steady:
+            stack.advance_steady()
+            mirror.push_parameters()
+        # after what the checks themselves set (the contact-aware tasks' supports); a stack
+        # that is not steady advances after this, and an edit made there (a goal ramp
+        # started, a contact released) brings the next step back here
+        self._key = (Edits.count,) + key[1:]
+        return mirror

@@ -40,7 +40,7 @@ import numpy as np
 
 from hqp.control.command import Command, FeasibilityReport
 from hqp.control.diagnostics import MODES, Diagnostics
-from hqp.control.native import RATE_TASK, ErrorSource, NativeEngine, NativeStepMirror
+from hqp.control.native import RATE_TASK, NativeEngine, NativeStepMirror
 from hqp.control.resolver import HQPResolver, Resolver
 from hqp.errors import InvalidInput
 from hqp.model.layout import Layout
@@ -490,21 +490,19 @@ class WholeBodyController(Controller):
         native solve leaves the step to the Python path (its fallback backends, then the
         safe command).
         """
-        assert self.native is not None
-        declared = self.stack.layout_contacts()
-        if [(c.name, c.frame, c.kind) for c in self.layout.contacts] != declared:
-            return None
-        mirror = self.native.ready(self, t)
+        engine = self.native
+        assert engine is not None
+        mirror = engine.ready(self, t)
         if mirror is None:
             return None
-        if self.native.steady:  # advancing tells contact-aware tasks the active contacts
-            self.stack.advance_steady()
-            ramping = []
-        else:  # tasks ramping in, goal ramps, contacts unloading (ready() checked it)
+        if not engine.steady:  # tasks ramping in, goal ramps, contacts unloading
             ramping = self.stack.advance_native(self.model, self.layout, t, self.last_x)
-        mirror.sync_ramps(ramping, t, self.last_x)
+            mirror.push_parameters()
+            mirror.sync_ramps(ramping, t, self.last_x)
+        elif mirror._ramped:  # the ramps that ended: their kernels' own rows again
+            mirror.sync_ramps([], t, self.last_x)
         clock = time.perf_counter
-        if mirror.has_torque_rate:
+        if mirror._rate_handle is not None:  # the torque-rate level
             assert self.max_torque_rate is not None
             mirror.set_torque_rate(self._rate_ref, self.max_torque_rate * self.dt)
         try:
@@ -512,9 +510,10 @@ class WholeBodyController(Controller):
         except RuntimeError as exc:  # the Python step solves it on the fallback backend
             self._native_failure = str(exc).splitlines()[0] if str(exc) else "failed"
             return None
-        mirror.collect_ramps()
+        if mirror._recording:
+            mirror.collect_ramps()
         cut = mirror.step_core.cut_levels() if self.work_budget else ()
-        mirror.record_errors(ErrorSource(mirror, self, self.step_serial))
+        mirror.record_errors(self)
         self.model.provide(mirror.quantity)  # the core's pass at this state, for readers
         t3 = clock()
         self.native.steps += 1
@@ -525,7 +524,9 @@ class WholeBodyController(Controller):
             notes.append(f"work budget ({self.work_budget} units) spent: the QP of level(s) "
                          f"{', '.join(str(mirror.stack_level(k)) for k in cut)} stopped at its "
                          "best feasible point; the levels above are exact")
-        tau, suspended = self._blend(tau, t, notes)  # a decaying-offset blend (if one runs)
+        suspended = False
+        if self._blend_start is not None:  # a decaying-offset blend runs
+            tau, suspended = self._blend(tau, t, notes)
         tau = self._clip(tau, notes)
         qdd, wrenches = self._split(x)
         t4 = clock()
@@ -556,18 +557,22 @@ class WholeBodyController(Controller):
         if slots is None or slots[0] is not layout:
             slots = self._slots = (layout, [(c.name, c.start, c.start + c.size)
                                             for c in layout.contacts])
-        return x[: layout.nv].copy(), {name: x[a:b].copy() for name, a, b in slots[1]}
+        wrenches = {}
+        for name, a, b in slots[1]:
+            wrenches[name] = x[a:b].copy()
+        return x[: layout.nv].copy(), wrenches
 
     def _clip(self, tau: np.ndarray, notes: list[str]) -> np.ndarray:
         """Torques within the model's limits; a clip beyond rounding is noted."""
         excess = np.abs(tau)
         excess -= self.model.tau_max
-        if excess.max(initial=0.0) > 0.0:
+        worst = np.maximum.reduce(excess, initial=0.0)  # (ufunc methods: no Python calls)
+        if worst > 0.0:
             # The solver meets the torque-limit rows to its tolerance: entries beyond by less
             # than 1e-6 relative (or 1e-6 N m) are rounding; larger ones are reported.
-            worst = float(excess.max())
-            tau = np.clip(tau, -self.model.tau_max, self.model.tau_max)
-            if np.any(excess > 1e-6 * np.maximum(1.0, self.model.tau_max)):
+            limit = self.model.tau_max
+            tau = np.minimum(np.maximum(tau, -limit), limit)
+            if np.logical_or.reduce(excess > 1e-6 * np.maximum(1.0, limit)):
                 notes.append(f"command clipped to the model's torque limits (by up to "
                              f"{worst:.3g} N m)")
         return tau

@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from hqp.errors import InvalidGain, InvalidInput, UnknownName, check_array
+from hqp.tasks.base import edited
 
 
 def _size(value: float, what: str, where: str) -> float:
@@ -212,6 +213,7 @@ class World:
         if obstacle.name in self._obstacles:
             raise InvalidInput(f"World: duplicate obstacle name {obstacle.name!r}")
         self._obstacles[obstacle.name] = obstacle
+        edited()  # the native step's distance kernels hold the obstacle pairs
 
     def remove(self, name: str) -> None:
         """Remove an obstacle by name.
@@ -222,6 +224,7 @@ class World:
         """
         self.get(name)
         del self._obstacles[name]
+        edited()
 
     def get(self, name: str) -> Obstacle:
         """Return the obstacle of that name.

@@ -123,7 +123,42 @@ def _vstack(mats: list[np.ndarray]) -> np.ndarray:
     return np.concatenate(mats)
 
 
-class Task(abc.ABC):
+class Edits:
+    """A count of the edits to what a controller's native step copies when it is built.
+
+    Every attribute assignment on a :class:`Tracked` object (a task, its PD reference, a
+    stack's entries) and every change of a stack's structure or of a world's obstacles adds
+    one. A controller compares the count with the one of its last step: equal, nothing it
+    copied into the core can have changed (goals excepted: they are pushed when they are new
+    samples) and the step skips every check; different, it checks again what the core
+    holds (``hqp.control.native``). Arrays edited in place are not seen: a task's
+    parameters change by assignment (``task.weight = 2.0``, ``task.set_gains(...)``).
+    """
+
+    count = 0
+
+
+def edited() -> None:
+    """Count one edit (:class:`Edits`), for changes that are not attribute assignments."""
+    Edits.count += 1
+
+
+class Tracked:
+    """An object whose attribute assignments are edits (:class:`Edits`).
+
+    Names in ``_untracked`` are not: what a step itself records on the object (errors, the
+    rows of its last step), so that a running loop leaves the count still.
+    """
+
+    _untracked: frozenset[str] = frozenset()
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        object.__setattr__(self, name, value)
+        if name not in self._untracked:
+            Edits.count += 1
+
+
+class Task(Tracked, abc.ABC):
     """A control primitive: robot state -> rows over ``x = [qdd | wrenches]``.
 
     Args:
@@ -137,6 +172,14 @@ class Task(abc.ABC):
 
     category: Category = Category.OPERATIONAL
     """Default category (level) of the primitive."""
+
+    _untracked = frozenset({
+        # goals: pushed to the core when they are new samples, not by the edit count
+        "_goal", "_trajectory", "_trusted",
+        # what a step records: the errors and rows of the last step
+        "_error_source", "_error_serial", "_recorded", "_last", "_last_reference", "_error",
+        "_violation", "_margins", "pair_names",
+    })
 
     contact_aware: bool = False
     """Whether the stack calls ``set_active_contacts(frames)`` before every :meth:`rows`."""
@@ -164,8 +207,12 @@ class Task(abc.ABC):
         """
 
     _error_source: Any = None
-    """Where the error of the last step, computed elsewhere (the native step), is fetched
-    when :meth:`error` is first called after it (``None``: the error held is current)."""
+    """Where the error of a step computed elsewhere (the native step) is fetched when
+    :meth:`error` is first called after it (``None``: the error held is current): an object
+    with the ``serial`` of its last step and ``fetch(task)``."""
+
+    _error_serial: int = -1
+    """The ``serial`` of ``_error_source`` whose error this task holds."""
 
     def error(self) -> np.ndarray:
         """Task-space error ``goal - current`` at the last call of :meth:`rows` (empty if none)."""
@@ -178,8 +225,8 @@ class Task(abc.ABC):
         controller's last one; a Python step since then computed the error in :meth:`rows`.
         """
         source = self._error_source
-        if source is not None:
-            self._error_source = None
+        if source is not None and source.serial != self._error_serial:
+            self._error_serial = source.serial
             source.fetch(self)
 
     def where(self) -> str:

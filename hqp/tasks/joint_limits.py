@@ -555,8 +555,13 @@ class JointLimits(Task):
         return np.broadcast_to(self.recovery, (model.na,)).astype(float)
 
     def set_active_contacts(self, frames: Sequence[str]) -> None:
-        """Record the frames of the active contacts (called by the stack at every build)."""
-        self._active_frames = tuple(frames)
+        """Record the frames of the active contacts (called by the stack at every build).
+
+        Assigned only when they change: an assignment is an edit (``hqp.tasks.base.Edits``).
+        """
+        frames = tuple(frames)
+        if frames != self._active_frames:
+            self._active_frames = frames
 
     def set_airborne_braking(self, airborne: bool) -> None:
         """Assume no support in the braking deceleration, whatever the active contacts.

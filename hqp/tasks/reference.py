@@ -35,6 +35,7 @@ import numpy as np
 import pinocchio as pin
 
 from hqp.errors import InvalidGain, InvalidInput, check_array
+from hqp.tasks.base import Tracked
 
 
 def _nonnegative(value: float | None, what: str, where: str, *, allow_inf: bool) -> float:
@@ -53,7 +54,7 @@ def _norm(x: np.ndarray) -> float:
     return math.sqrt(x.dot(x)) if x.ndim == 1 else float(np.linalg.norm(x))
 
 
-class PDReference:
+class PDReference(Tracked):
     """The saturated PD law of seed 003 eq. 27-28 with feedforward (module docstring).
 
     Args:
@@ -346,11 +347,12 @@ class MinimumJerk:
         controller holding the goal then pushes nothing down).
         """
         tau = float(t) - self.t0
-        m = self.start.shape[0]
-        held = _held(self._ends, tau, self.duration, lambda end: TrajectorySample(
-            (self.goal if end else self.start).copy(), np.zeros(m), np.zeros(m)))
-        if held is not None:
-            return held
+        if not 0.0 < tau < self.duration:  # (the test of _held, inline: at every step)
+            m = self.start.shape[0]
+            held = _held(self._ends, tau, self.duration, lambda end: TrajectorySample(
+                (self.goal if end else self.start).copy(), np.zeros(m), np.zeros(m)))
+            if held is not None:
+                return held
         c = self._c
         p = c[0] + tau * (c[1] + tau * (c[2] + tau * (c[3] + tau * (c[4] + tau * c[5]))))
         v = c[1] + tau * (2 * c[2] + tau * (3 * c[3] + tau * (4 * c[4] + tau * 5 * c[5])))
@@ -447,6 +449,7 @@ class MinimumJerkPose:
         H1 = check_placement(goal, f"{where}: goal")
         self._p = MinimumJerk(H0[:3, 3], H1[:3, 3], duration, t0)
         self._r = MinimumJerkRotation(H0[:3, :3], H1[:3, :3], duration, t0)
+        self.duration, self.t0 = self._p.duration, self._p.t0
         self._ends: list[TrajectorySample | None] = [None, None]  # (before, after)
 
     def sample(self, t: float) -> TrajectorySample:

@@ -168,15 +168,15 @@ class NativeLawMirror:
         """Torques of the last step ``(na,)`` [N m]."""
         return self.law.tau
 
-    def record_errors(self, source: Any = None) -> None:
+    def record_errors(self, controller: Any = None) -> None:
         """Give each task the error of the last step (kernels; zones: active joints, errors).
 
         A zone's ``active`` and :meth:`~hqp.tasks.joint_limit_zone.JointLimitZone.error` are
-        what its ``rows`` leaves them at on the Python step. With a ``source``
-        (:class:`~hqp.control.native.ErrorSource`), the kernels' tasks fetch theirs when first
-        read (:meth:`~hqp.control.native.NativeStepMirror.record_errors`).
+        what its ``rows`` leaves them at on the Python step. With the ``controller`` that ran
+        the step, the kernels' tasks fetch theirs when first read
+        (:meth:`~hqp.control.native.NativeStepMirror.record_errors`).
         """
-        self.kernels.record_errors(source)
+        self.kernels.record_errors(controller)
         names = self.model.joint_names
         for source, task in self._zones:
             active, error, _ref = self.law.zone(source)

@@ -20,7 +20,6 @@ import numpy as np
 
 from hqp.control.command import Command, FeasibilityReport
 from hqp.control.diagnostics import level_cost
-from hqp.control.native import ErrorSource
 from hqp.control.nullspace.law import EIG_TOL, LawSolution, prioritized_torques
 from hqp.control.nullspace.multicontact import (
     LawProblem,
@@ -293,7 +292,7 @@ class NullSpaceController(WholeBodyController):
         self.stack.advance_steady()
         if mirror.step(q, v, t):  # the Python law runs it (and notes why it fails)
             return None
-        mirror.record_errors(ErrorSource(mirror.kernels, self, self.step_serial))
+        mirror.record_errors(self)
         self.model.provide(mirror.kernels.quantity)  # the core's pass at this state
         clock = time.perf_counter
         t3 = clock()
