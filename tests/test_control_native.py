@@ -474,11 +474,16 @@ def _change_posture_gain(c):
         10.0, 2 * np.sqrt(10.0), np.inf, np.inf)
 
 
+def _scale_torque_limits(c):
+    task = c.task("torque_limits")
+    task.tau_max = task.tau_max * 0.7  # (a new array: the task's own is read-only)
+
+
 _CHANGES = {
     "weight": lambda c: setattr(c.task("trunk"), "weight", 7.0),
     "gains": _change_posture_gain,
     "friction": lambda c: setattr(c.task("left_foot"), "mu", 0.3),
-    "torque_limits_in_place": lambda c: c.task("torque_limits").tau_max.__imul__(0.7),
+    "torque_limits_scaled": _scale_torque_limits,
     "torque_scale": lambda c: setattr(c.task("torque_limits"), "scale", 0.8),
     "joint_limit_margin": lambda c: setattr(c.task("joint_limits"), "position_margin", 0.05),
 }
@@ -486,11 +491,11 @@ _CHANGES = {
 
 @pytest.mark.parametrize("change", sorted(_CHANGES))
 def test_a_parameter_changed_between_steps_rebuilds_the_native_step(change):
-    """A task parameter set between two steps (by attribute, in place) reaches the kernels:
-    the next native step equals the Python step with the same change."""
+    """A task parameter set between two steps (by attribute) reaches the kernels: the next
+    native step equals the Python step with the same change."""
     robot, nat, py = _pair("g1", "residuals")
-    for c in (nat, py):  # an array of the task's own, changed in place below
-        c.task("torque_limits").tau_max = c.model.tau_max.copy()
+    for c in (nat, py):  # an array of the task's own, changed below
+        c.task("torque_limits").tau_max = c.model.tau_max
     states = list(_states(robot, nat.model, 8, seed=3))
     for t, state in states[:5]:
         nat.step(state, t), py.step(state, t)
@@ -601,3 +606,19 @@ def test_the_recovery_deceleration_is_mirrored_natively():
     _same_levels(nat, py, "g1 wrist at 20 rad/s")
     lb, ub = jl.bounds(model, py.dt)
     assert lb[wrist] == ub[wrist] == pytest.approx(-20.0**2 / 2.0, rel=0.05)  # stops at the limit
+
+
+def test_a_parameter_array_edited_in_place_is_an_error():
+    """An array a task holds as a parameter is read-only: an edit in place, which the
+    controller would not see, raises instead of being lost; the caller's array is copied,
+    not frozen, and assigning a new array is an edit the next step applies."""
+    robot, nat, _ = _pair("g1", "residuals")
+    limits = nat.model.tau_max.copy()
+    task = nat.task("torque_limits")
+    task.tau_max = limits
+    limits[0] = 1.0  # the caller's own array stays theirs
+    assert task.tau_max[0] == nat.model.tau_max[0]
+    with pytest.raises(ValueError, match="read-only"):
+        task.tau_max[0] = 1.0
+    with pytest.raises(ValueError, match="read-only"):
+        task.tau_max *= 0.7

@@ -131,8 +131,9 @@ class Edits:
     one. A controller compares the count with the one of its last step: equal, nothing it
     copied into the core can have changed (goals excepted: they are pushed when they are new
     samples) and the step skips every check; different, it checks again what the core
-    holds (``hqp.control.native``). Arrays edited in place are not seen: a task's
-    parameters change by assignment (``task.weight = 2.0``, ``task.set_gains(...)``).
+    holds (``hqp.control.native``). A task's parameters change by assignment
+    (``task.weight = 2.0``, ``task.tau_max = limits``, ``task.set_gains(...)``): the arrays
+    they hold are read-only (:class:`Tracked`).
     """
 
     count = 0
@@ -147,15 +148,22 @@ class Tracked:
     """An object whose attribute assignments are edits (:class:`Edits`).
 
     Names in ``_untracked`` are not: what a step itself records on the object (errors, the
-    rows of its last step), so that a running loop leaves the count still.
+    rows of its last step), so that a running loop leaves the count still. An array assigned
+    to a public attribute (a parameter: ``tau_max``, ``qdd_max``, gains) is kept as a
+    read-only copy, so that an edit in place, which no count would see, is an error
+    (NumPy's ``ValueError``: the destination is read-only) rather than lost; ``task.tau_max
+    = task.tau_max * 0.7`` is an edit.
     """
 
     _untracked: frozenset[str] = frozenset()
 
     def __setattr__(self, name: str, value: Any) -> None:
-        object.__setattr__(self, name, value)
         if name not in self._untracked:
+            if type(value) is np.ndarray and name[0] != "_":
+                value = value.copy()
+                value.flags.writeable = False
             Edits.count += 1
+        object.__setattr__(self, name, value)
 
 
 class Task(Tracked, abc.ABC):
