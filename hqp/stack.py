@@ -593,15 +593,13 @@ class Stack:
         """Whether the native step can run the step at ``t`` when :meth:`steady` does not hold.
 
         Contacts whose unloading is over at ``t`` are released first (as :meth:`advance`
-        does). Then true when no blend event waits and every unloading or released contact
-        has an owner (a ``Contact`` task whose kernel takes its normal-force bound and holds
-        its slot): tasks ramping in, goal ramps and unloading are advanced by
-        :meth:`advance_native` and the ramps applied in the native rows
-        (``NativeStep.set_ramp``, the same offsets as :meth:`build`).
+        does). Then true when every unloading or released contact has an owner (a
+        ``Contact`` task whose kernel takes its normal-force bound and holds its slot): tasks
+        ramping in, goal ramps and unloading are advanced by :meth:`advance_native` and the
+        ramps applied in the native rows (``NativeStep.set_ramp``, the same offsets as
+        :meth:`build`). Blend events waiting (:meth:`events`) are the controller's to start.
         """
         self._update_contacts(t)
-        if self._events:
-            return False
         for c in self._contacts.values():
             if c.mode is not ContactMode.ACTIVE and not self._self_managed(c.name):
                 return False
@@ -642,6 +640,10 @@ class Stack:
         2e-15) just below the ramp's end, which the native step's ``set_ramp`` refuses.
         """
         return min(max(1.0 - min_jerk((t - entry.added_at) / entry.ramp_time), 0.0), 1.0)
+
+    def events(self) -> tuple[BlendEvent, ...]:
+        """The blend events recorded since the last :meth:`pop_events`."""
+        return tuple(self._events)
 
     def pop_events(self) -> list[BlendEvent]:
         """Return and forget the blend events recorded since the last call."""

@@ -184,8 +184,9 @@ def test_a_conflict_is_reported_as_the_python_step_reports_it(name):
 def test_ramps_and_unloading_run_natively_and_other_changes_on_the_python_step():
     """A task ramping in and a contact unloading run on the native step (the ramp offsets
     recorded from the kernel's rows, the contact's normal-force bound pushed down each step)
-    with the Python step's commands; the release's blend event and a task without a kernel
-    run on the Python step."""
+    with the Python step's commands, and so does the release's blend event (a decaying
+    offset, started before the native solve); a task without a kernel runs on the Python
+    step."""
     from _h5_standins import PostureStandIn
 
     robot, nat, py = _pair("g1", "residuals", max_torque_rate=None)  # degenerate steps
@@ -203,8 +204,8 @@ def test_ramps_and_unloading_run_natively_and_other_changes_on_the_python_step()
                 ctrl.deactivate_contact("left_foot", unload_time=0.05)
             before = nat.native.steps
         if k == 200:
-            # the unloading natively; the release's blend event (one step) on the Python step
-            assert nat.native.steps - before == 139
+            # the unloading natively, the release's blend event too
+            assert nat.native.steps - before == 140
         # the hand's ramp and the contact's release move the robot: QP points, as in conflict
         before_step = nat.native.steps
         strict += _same_optimum(nat, py, nat.step(state, t), py.step(state, t), f"t={t}",
@@ -228,8 +229,8 @@ def test_ramps_and_unloading_run_natively_and_other_changes_on_the_python_step()
 @pytest.mark.parametrize("name", ["g1", "talos"])
 def test_the_torque_blend_after_a_release_runs_natively(name):
     """A foot released at once: the decaying-offset torque blend after the release (the
-    stack's blend_time, strictness suspended) runs on the native step from its second step on,
-    with the Python step's levels and blended command (:func:`_same_optimum` where a step is
+    stack's blend_time, strictness suspended) runs on the native step from its first step on
+    (the release's event), with the Python step's levels and blended command (:func:`_same_optimum` where a step is
     degenerate; without the torque-rate level, see :func:`_pair`).
 
     Released at once, not unloaded first: an unloading's last steps are ill-conditioned (the
@@ -250,17 +251,14 @@ def test_the_torque_blend_after_a_release_runs_natively(name):
         ran_native = nat.native.steps == before + 1
         assert a.report.strictness_suspended == b.report.strictness_suspended, t
         native += ran_native
-        if not ran_native:
-            continue  # the release's event: the Python step
         if a.report.strictness_suspended:
             blend += 1
             _same_levels(nat, py, f"{name} t={t}")
         strict += _same_optimum(nat, py, a, b, f"{name} t={t}", tol=1e-6, sigma_tol=1e-6,
                                 conflict_sigma=False)
-    # every step natively (the unloading too) but the release's event
-    assert native == len(states) - 1 and strict >= 0.8 * native
-    # the blend's steps but its first (the release's event: the Python step)
-    assert blend >= round(nat.stack.blend_time / 0.001) - 2 > 0
+    # every step natively, the release's event and the blend included
+    assert native == len(states) and strict >= 0.8 * native
+    assert blend >= round(nat.stack.blend_time / 0.001) - 1 > 0
 
 
 def test_native_needs_a_bundled_robot_model():
@@ -559,29 +557,36 @@ def test_error_norms_read_in_one_call_equal_each_tasks_error(name):
 
 
 def test_a_ramp_recorded_by_a_python_step_continues_natively():
-    """A task added at the step of a blend event (a task removed): that step is a Python step
-    and records the ramp's offsets from the Python rows; the native steps after it take them
-    (``NativeStep.set_ramp_offsets``) and build the Python step's levels (to 1e-9)."""
+    """A task added at the step a foot is made again: the contact's blend between two
+    hierarchies runs on the Python step, which records the ramp's offsets from the Python
+    rows; the native steps after the blend take them (``NativeStep.set_ramp_offsets``) and
+    build the Python step's levels (to 1e-9)."""
     robot, nat, py = _pair("g1", "residuals", max_torque_rate=None)
-    states = list(_states(robot, nat.model, 60, seed=19))
+    states = list(_states(robot, nat.model, 140, seed=19, scale=0.001))
     hand = robot.hands[0]
-    ramped = 0
+    contact = next(c.name for c in nat.layout.contacts if c.frame == robot.feet[0])
+    blend_steps = round(nat.stack.blend_time / 0.001)
+    ramped = python = 0
     for k, (t, state) in enumerate(states):
+        if k == 10:
+            for ctrl in (nat, py):
+                ctrl.deactivate_contact(contact, unload_time=0.0)
         if k == 20:
             for ctrl in (nat, py):
-                _add_hand(ctrl, state, hand, [0.0, 0.0, 0.02], ramp_time=0.03, t=t)
-                ctrl.remove_task("angular_momentum", t=t)  # a blend event at the same step
+                _add_hand(ctrl, state, hand, [0.0, 0.0, 0.02], ramp_time=0.1, t=t)
+                ctrl.activate_contact(contact, t=t)  # a blend between two hierarchies
         before = nat.native.steps
         a, b = nat.step(state, t), py.step(state, t)
         if k == 20:
-            assert nat.native.steps == before  # the event's step: Python, offsets recorded
             offsets = nat.stack._tasks[-1].offsets
-            assert offsets is not None
-        elif 20 < k < 50 and nat.native.steps == before + 1:
+            assert offsets is not None  # recorded by the Python step
+        python += nat.native.steps == before
+        if 20 + blend_steps < k < 120 and nat.native.steps == before + 1:
             ramped += nat.stack.ramp_keep(nat.stack._tasks[-1], t) > 0.0
             _same_levels(nat, py, f"t={t}", tol=1e-9)
             assert nat.stack._tasks[-1].offsets is offsets  # the Python step's, pushed down
         _same_optimum(nat, py, a, b, f"t={t}", tol=1e-5, sigma_tol=1e-6, conflict_sigma=False)
+    assert python >= blend_steps - 1  # the contact's blend
     assert ramped >= 20
 
 

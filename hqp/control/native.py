@@ -852,6 +852,10 @@ class NativeEngine:
         self.steady = True
         """Whether the stack was steady at the last :meth:`ready` (else: ramps, unloading)."""
 
+    def forget(self) -> None:
+        """Check everything again at the next :meth:`ready` (a step left to Python after it)."""
+        self._key = None
+
     def signature(self, controller: Any) -> tuple[Any, ...]:
         """Return what a mirror is built from: the controller's stack structure.
 

@@ -495,6 +495,11 @@ class WholeBodyController(Controller):
         mirror = engine.ready(self, t)
         if mirror is None:
             return None
+        if not engine.steady and self.stack.events():  # a task or contact added or removed
+            if self._blends_hierarchies():  # a contact made: the Python step solves both
+                engine.forget()
+                return None
+            self._start_blend(t)  # a decaying offset, applied after the native solve
         if not engine.steady:  # tasks ramping in, goal ramps, contacts unloading
             ramping = self.stack.advance_native(self.model, self.layout, t, self.last_x)
             mirror.push_parameters()
@@ -666,6 +671,15 @@ class WholeBodyController(Controller):
         self._blend_notes = tuple(e.note for e in events)
         contacts = {e.contact for e in events}
         self._blend_contact = contacts.pop() if len(events) == 1 and None not in contacts else None
+
+    def _blends_hierarchies(self) -> bool:
+        """Whether the blend events waiting start a blend between two hierarchies.
+
+        A contact made alone, with torques sent before it (:meth:`_start_blend`).
+        """
+        events = self.stack.events()
+        return (len(events) == 1 and events[0].contact is not None
+                and self.last_tau is not None and self.stack.blend_time > 0.0)
 
     def _start_safe_blend(self, t: float, safe: bool) -> None:
         """Blend into (or out of) the safe command: the offset from the last torques decays.
