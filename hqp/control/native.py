@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import math
 import operator
+import os
 from collections.abc import Callable, Sequence
 from typing import Any
 
@@ -77,6 +78,19 @@ _NO_INT = np.zeros(0, dtype=np.int32)
 _NO_SCALE = np.zeros(0)
 
 
+_FRAME_MODELS: dict[tuple[Any, ...], Any] = {}
+
+
+def _frame_model(core: Any, urdf: str, frames: list[tuple[str, str, np.ndarray]]) -> Any:
+    """The core's model of a robot, for its frame indices: one per description and module."""
+    key = (core, urdf, os.stat(urdf).st_mtime_ns) + tuple((n, p, T.tobytes())
+                                                          for n, p, T in frames)
+    model = _FRAME_MODELS.get(key)
+    if model is None:
+        model = _FRAME_MODELS[key] = core.RobotCore(urdf, ROOT_JOINT, frames)
+    return model
+
+
 class NativeStepMirror:
     """A controller's stack in the native core, and the goals pushed down each step.
 
@@ -103,7 +117,7 @@ class NativeStepMirror:
         self._layout = layout
         frames = [(n, p, T.homogeneous) for n, (p, T) in robot.extra_frames.items()]
         slots = []
-        robot_core = core.RobotCore(str(robot.urdf_path), ROOT_JOINT, frames)
+        robot_core = _frame_model(core, str(robot.urdf_path), frames)
         for slot in layout.contacts:
             slots.append((robot_core.frame_id(slot.frame), slot.kind.value, slot.start))
         # the servo's torque-rate level (max_torque_rate): a level of its own after the stack
@@ -167,6 +181,13 @@ class NativeStepMirror:
         self._pushed: dict[str, tuple[bool, Any]] = {
             t.name: (t.active, None if t.reference is None else t.reference.homogeneous.copy())
             for t in stack.tasks if isinstance(t, Contact)}
+
+    def resume(self) -> None:
+        """Take the mirror up again after another one ran (:attr:`NativeEngine.KEPT`).
+
+        Its tasks' errors are fetched from it again (the other mirror's source had them).
+        """
+        self._source = None
 
     def _native_level(self, level: int) -> int:
         """Return the native level of stack level ``level`` (after the torque-rate level)."""
@@ -847,10 +868,19 @@ class NativeEngine:
         self.unsupported: str | None = None
         self._signature: tuple[Any, ...] | None = None
         self._key: tuple[Any, ...] | None = None  # what ready() checked at the last step
+        self._mirrors: dict[tuple[Any, ...], NativeStepMirror] = {}  # by signature
         self._t = -np.inf  # the time of the last step
         self.steps = 0
         self.steady = True
         """Whether the stack was steady at the last :meth:`ready` (else: ramps, unloading)."""
+
+    KEPT = 8
+    """Mirrors kept for a task set seen before (a behavior's phases alternate among a few).
+
+    A mirror is built in milliseconds (two URDF passes and the kernels; tens of
+    milliseconds on talos): a phase change back to a task set seen before takes its mirror
+    again, whose pushed goals, contact activations, bounds and ramps are compared with the
+    tasks' at the next step as those of the mirror in use."""
 
     def forget(self) -> None:
         """Check everything again at the next :meth:`ready` (a step left to Python after it)."""
@@ -904,11 +934,21 @@ class NativeEngine:
         signature = self.signature(controller)
         if signature != self._signature:
             self._signature = signature
-            self.mirror, self.unsupported = None, None
-            try:
-                self.mirror = NativeStepMirror(self.robot, controller, self.rank_tol)
-            except NotSupported as exc:
-                self.unsupported = str(exc)
+            self.mirror, self.unsupported = self._mirrors.pop(signature, None), None
+            if self.mirror is not None and (self.mirror.stack is not stack
+                                            or self.mirror._layout is not controller.layout):
+                self.mirror = None
+            if self.mirror is None:
+                try:
+                    self.mirror = NativeStepMirror(self.robot, controller, self.rank_tol)
+                except NotSupported as exc:
+                    self.unsupported = str(exc)
+            else:
+                self.mirror.resume()
+            if self.mirror is not None:  # the most recent last
+                self._mirrors[signature] = self.mirror
+                while len(self._mirrors) > self.KEPT:
+                    del self._mirrors[next(iter(self._mirrors))]
         mirror = self.mirror
         if mirror is None or mirror._layout is not controller.layout:
             return None
