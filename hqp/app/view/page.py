@@ -31,6 +31,8 @@ import numpy as np
 
 from hqp.app.view.session import (
     CHART_SIGNALS,
+    PANEL_PERIOD,
+    PUBLISH_PERIOD,
     GoalHandle,
     Snapshot,
     TaskRow,
@@ -52,10 +54,8 @@ else:
 
 logger = logging.getLogger(__name__)
 
-FRAME_RATE = 30.0
-"""Scene updates sent to the page per second (at most) [Hz]."""
-PANEL_PERIOD = 0.2
-"""Period of the task panel and strip-chart refresh [s]."""
+FRAME_RATE = 1.0 / PUBLISH_PERIOD
+"""Scene updates sent to the page per second (at most) [Hz]: the rate the loop publishes at."""
 DRAG_HOLD = 0.5
 """After the user moves a goal, the page leaves its handle alone this long [s]."""
 CHART_LABELS = {
