@@ -207,6 +207,7 @@ class _Run:
     steps: int = 0
     t_end: float = 0.0
     wall: float = 0.0
+    cpu: float = 0.0
     fell_at: float | None = None
     fall_reason: str | None = None
     last_input: dict[str, tuple[float, np.ndarray]] = field(default_factory=dict)
@@ -275,6 +276,7 @@ class ViewSession:
         self.video: Video | None = None
         self.video_note: str | None = None
         self.session_time = 0.0  # simulated time over every run of the session [s]
+        self.page_figures: dict[str, float] | None = None  # the page's, for the record
         self._pace = (0.0, 0.0)  # (wall clock, session time) the pacing counts from
         self._last_report: Any = None
         self._last_jump = 0.0
@@ -427,6 +429,7 @@ class ViewSession:
         run.behavior.start(self.sim.state(), 0.0)
         self._action(run, 0.0, "behavior", name=name)
         wall0 = time.perf_counter()
+        cpu0 = time.thread_time()
         self._pace = (time.perf_counter(), self.session_time)
         self._next_chart = 0.0
         self._next_publish = self._next_panel = 0.0
@@ -446,6 +449,7 @@ class ViewSession:
                         after_step=after, clock="steps", stop_on_fall=False)
         except _EndRun:
             pass
+        run.cpu = time.thread_time() - cpu0
         run.inputs_file.close()
 
     def _before(self, run: _Run, step: Step) -> None:
@@ -651,6 +655,9 @@ class ViewSession:
         for run in self.runs:
             metrics = run.meter.metrics(run.t_end, getattr(run.controller, "backend", None))
             metrics["realtime_factor"] = round(run.t_end / run.wall, 3) if run.wall > 0 else 0.0
+            # the loop thread's CPU time: its wall time less its sleeps and its waits for
+            # the GIL or a core
+            metrics["loop_cpu_s"] = round(run.cpu, 3)
             metrics.update(run.behavior.metrics())
             result = BehaviorRun(
                 behavior=run.name, robot=self.robot.name, controller=self.controller_name,
@@ -664,7 +671,7 @@ class ViewSession:
             data["inputs_file"] = str(run.inputs_path) if self._tmp is None else None
             runs.append(data)
         return {"viewer": {"robot": self.robot.name, "controller": self.controller_name,
-                           "realtime": self.realtime,
+                           "realtime": self.realtime, "page": self.page_figures,
                            "video": None if self.video is None else str(self.video.path),
                            "video_note": self.video_note},
                 "runs": runs}
