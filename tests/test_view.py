@@ -117,7 +117,8 @@ def test_paced_loop_starts_a_new_behavior_at_once(monkeypatch):
     finally:
         session.close()
     assert snap.steps >= 50
-    assert sleeps and max(sleeps) < PACE_SLACK, max(sleeps)  # the old clock slept >= 0.5 s
+    # the old clock slept >= 0.5 s at reach's first step; a loaded machine may not sleep at all
+    assert all(x < PACE_SLACK for x in sleeps), max(sleeps)
 
 
 def test_session_refuses_bad_commands():
