@@ -257,10 +257,10 @@ def test_page_keeps_pace_while_the_goal_is_dragged(tmp_path):
             while time.monotonic() - wall0 < 10.0:
                 try:
                     measure.drag_goal(page, measure.DRAG_PIXELS * (1 if k % 2 == 0 else -1),
-                                      width, height, attempts=1, timeout_ms=5000)
+                                      width, height)
                     moved += 1
                 except RuntimeError:
-                    pass  # missed the arrow: the page was reloaded, the camera is back
+                    pass  # three drags missed the arrow (each: the page reloaded)
                 k += 1
                 times.append(measure.page_number(page, time_shown))
                 distances.append(measure.hand_distance(page))
@@ -270,9 +270,10 @@ def test_page_keeps_pace_while_the_goal_is_dragged(tmp_path):
     finally:
         rc = measure.stop_view(proc)
     assert rc == 0, (tmp_path / "view.log").read_text()
-    assert moved >= 1, f"no drag of {k} moved the goal"
+    rtf = (t1 - t0) / (wall1 - wall0)
+    figures = f"real-time factor {rtf:.2f} over {wall1 - wall0:.1f} s of {k} drags"
+    assert moved >= 1, f"no drag moved the goal ({figures})"
     assert all(b > a for a, b in zip(times, times[1:])), times
     assert len(set(distances)) > 1, distances
     assert re.search(r"4\s+balance\s+ok", table), table
-    rtf = (t1 - t0) / (wall1 - wall0)
-    assert rtf >= 0.9, f"real-time factor {rtf:.2f} over {wall1 - wall0:.1f} s of dragging"
+    assert rtf >= 0.9, figures
