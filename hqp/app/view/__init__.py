@@ -81,6 +81,7 @@ def command(args: argparse.Namespace) -> int:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
         page.stop()
+        session.page_figures = page.figures()
         session.stop()
         written = session.write_record()
         session.close()

@@ -1,12 +1,16 @@
 """Measure ``hqp view`` in a headless Chromium: page frame rate and the loop's real-time factor.
 
 ``python -m hqp.app.view.measure --robot g1 --seconds 20 --screenshot docs/figures/view.png``
-starts ``hqp view stand --no-browser`` on a free port, opens its page in Debian's
-``chromium`` through Playwright (software WebGL where there is no GPU), clicks *reach*,
-drags the hand goal's handle with the mouse, up and down by 60 px one drag after the other,
-and reports, as one JSON object on stdout: the page's frames per second (browser
-``requestAnimationFrame`` callbacks), the scene updates the server sent per second and the
-loop's real-time factor (both as the page shows them), and where it wrote the screenshot.
+starts ``hqp view stand --no-browser`` (with ``--fast``: ``hqp view stand --fast``) on a free
+port, opens its page in Debian's ``chromium`` through Playwright (software WebGL where there
+is no GPU), clicks *reach*, drags the hand goal's handle with the mouse, up and down by 60 px
+one drag after the other, and reports, as one JSON object on stdout: the page's frames per
+second (browser ``requestAnimationFrame`` callbacks), the scene updates the server sent per
+second and the loop's real-time factor (both as the page shows them), the reach run's
+real-time factor, the loop thread's CPU time per simulated second and its share of the
+loop's wall time (a loop that waits on nothing, the GIL included, runs all of its wall time
+when ``--fast``), the drawing thread's share of a core, the viewer process's CPU time, and
+where it wrote the screenshot.
 The browser helpers are shared with ``tests/test_view.py``.
 """
 
@@ -70,8 +74,9 @@ def free_port() -> int:
 
 
 def start_view(port: int, log: Path, record: Path | None = None, behavior: str = "stand",
-               robot: str | None = None, timeout: float = 180.0) -> subprocess.Popen:
-    """Start ``hqp view BEHAVIOR --no-browser`` as a process; return once it serves.
+               robot: str | None = None, timeout: float = 180.0,
+               fast: bool = False) -> subprocess.Popen:
+    """Start ``hqp view BEHAVIOR --no-browser`` (``--fast``) as a process; return once it serves.
 
     Its stderr goes to the file ``log`` (a pipe left unread would fill and block it).
     """
@@ -82,6 +87,8 @@ def start_view(port: int, log: Path, record: Path | None = None, behavior: str =
         cmd += ["--record", str(record)]
     if robot is not None:
         cmd += ["--robot", robot]
+    if fast:
+        cmd += ["--fast"]
     log.parent.mkdir(parents=True, exist_ok=True)
     with log.open("w") as err:
         proc = subprocess.Popen(cmd, stderr=err, stdout=subprocess.DEVNULL, env=env)
@@ -217,7 +224,7 @@ def open_reach(page: Any, url: str, timeout_ms: float = 180000) -> list[Any]:
 
 
 def measure(robot: str | None, seconds: float, screenshot: Path | None,
-            width: int = 1280, height: int = 800) -> dict[str, Any]:
+            width: int = 1280, height: int = 800, fast: bool = False) -> dict[str, Any]:
     """Drag the hand goal for ``seconds`` and measure (see the module docstring)."""
     if sync_playwright is None:
         raise RuntimeError("needs Playwright (pip install playwright)")
@@ -227,7 +234,7 @@ def measure(robot: str | None, seconds: float, screenshot: Path | None,
     port = free_port()
     with tempfile.TemporaryDirectory() as tmp:
         log = Path(tmp) / "view.log"
-        proc = start_view(port, log, Path(tmp), behavior="stand", robot=robot)
+        proc = start_view(port, log, Path(tmp), behavior="stand", robot=robot, fast=fast)
         try:
             with sync_playwright() as p:
                 browser = launch(p, exe)
@@ -268,6 +275,8 @@ def measure(robot: str | None, seconds: float, screenshot: Path | None,
         problems = [line for line in log.read_text().splitlines()
                     if line.startswith(("ERROR", "Traceback", "hqp view: the simulation"))]
     reach = record["runs"][-1]
+    page_figures = record["viewer"]["page"]
+    wall = reach["duration_s"] / reach["realtime_factor"] if reach["realtime_factor"] else 0.0
 
     def median(xs: list[float]) -> float | None:
         return round(float(sorted(xs)[len(xs) // 2]), 3) if xs else None
@@ -277,7 +286,15 @@ def measure(robot: str | None, seconds: float, screenshot: Path | None,
             "page_fps": round(frames / elapsed, 3),
             "scene_updates_per_s_median": median(ups),
             "realtime_factor_median": median(rtf),
-            "loop_realtime_factor": reach["realtime_factor"],
+            "fast": fast, "loop_realtime_factor": reach["realtime_factor"],
+            "loop_cpu_per_simulated_s": (round(reach["loop_cpu_s"] / reach["duration_s"], 3)
+                                         if reach["duration_s"] else None),
+            "loop_cpu_share_of_wall": round(reach["loop_cpu_s"] / wall, 3) if wall else None,
+            "page_draw_cpu_share": round(page_figures["draw_cpu_s"] / page_figures["seconds"], 3),
+            "viewer_process_cpu_s": page_figures["process_cpu_s"],
+            "reach_loop_cpu_s": reach["loop_cpu_s"], "reach_wall_s": round(wall, 3),
+            "scene_updates_sent_per_s": round(page_figures["frames_sent"]
+                                              / page_figures["seconds"], 1),
             "step_time_median_ms": reach["step_time_median_ms"],
             "hand_distance_at_end_m": distance, "fell": reach["fell"], "exit_status": rc,
             "viewer_errors": problems,
@@ -293,8 +310,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--screenshot", type=Path, default=None, help="PNG written at the end")
     parser.add_argument("--width", type=int, default=1280)
     parser.add_argument("--height", type=int, default=800)
+    parser.add_argument("--fast", action="store_true",
+                        help="run the viewer as fast as it goes (hqp view --fast)")
     args = parser.parse_args(argv)
-    result = measure(args.robot, args.seconds, args.screenshot, args.width, args.height)
+    result = measure(args.robot, args.seconds, args.screenshot, args.width, args.height,
+                     args.fast)
     print(json.dumps(result))
     return 0
 

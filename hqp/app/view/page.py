@@ -31,6 +31,8 @@ import numpy as np
 
 from hqp.app.view.session import (
     CHART_SIGNALS,
+    PANEL_PERIOD,
+    PUBLISH_PERIOD,
     GoalHandle,
     Snapshot,
     TaskRow,
@@ -52,10 +54,8 @@ else:
 
 logger = logging.getLogger(__name__)
 
-FRAME_RATE = 30.0
-"""Scene updates sent to the page per second (at most) [Hz]."""
-PANEL_PERIOD = 0.2
-"""Period of the task panel and strip-chart refresh [s]."""
+FRAME_RATE = 1.0 / PUBLISH_PERIOD
+"""Scene updates sent to the page per second (at most) [Hz]: the rate the loop publishes at."""
 DRAG_HOLD = 0.5
 """After the user moves a goal, the page leaves its handle alone this long [s]."""
 CHART_LABELS = {
@@ -147,6 +147,8 @@ class ViewerPage:
                             "pick another with --port")
         self.url = f"http://{host}:{port}"
         self.frames_sent = 0
+        self.draw_cpu = 0.0  # CPU time of the drawing thread [s]
+        self._started = time.monotonic()
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._pending: dict[str, np.ndarray] = {}
@@ -261,10 +263,23 @@ class ViewerPage:
         recent = [t for t in self._fps if t > now - 2.0]
         return len(recent) / 2.0
 
+    def figures(self) -> dict[str, float]:
+        """Return the drawing thread's figures: seconds served, frames sent, CPU times [s].
+
+        ``draw_cpu_s`` is the drawing thread's, ``process_cpu_s`` the whole process's (the
+        loop, the drawing, viser's server threads).
+        """
+        return {"seconds": round(time.monotonic() - self._started, 3),
+                "frames_sent": self.frames_sent, "draw_cpu_s": round(self.draw_cpu, 3),
+                "process_cpu_s": round(time.process_time(), 3)}
+
     def _main(self) -> None:
         last: Snapshot | None = None
         period = 1.0 / FRAME_RATE
+        self._started = time.monotonic()
+        cpu0 = time.thread_time()
         while not self._stop.is_set():
+            self.draw_cpu = time.thread_time() - cpu0
             t0 = time.monotonic()
             self._send_goals()
             snap = self.session.snapshot()

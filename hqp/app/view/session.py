@@ -6,7 +6,12 @@ hooks of :class:`hqp.app.run._Meter`), on a thread of its own, and takes command
 other thread (the web page's callbacks): pick a behavior, pause, single step, reset, push,
 move a goal. It never waits on the page: commands go into a queue that the loop drains
 between control steps, and the loop publishes a :class:`Snapshot` (body poses, the
-feasibility report, strip-chart samples) that the page reads when it draws.
+feasibility report, strip-chart samples) that the page reads when it draws. The loop
+publishes at the page's frame rate (:data:`PUBLISH_PERIOD` of wall-clock time), not at every
+step, and rebuilds the task panel and the charts' arrays only every :data:`PANEL_PERIOD`;
+between two publishes a control step costs the loop no Python allocation of its own. Paced,
+the loop sleeps until a deadline clock (simulated time over wall-clock time since the loop
+last started or stalled), so pacing does not drift.
 
 Goals reach the tasks through the runtime-input path of behavior files
 (:class:`hqp.behaviors.inputs.InputStream`): each behavior runs with an inputs file of its
@@ -23,9 +28,9 @@ where offscreen rendering is available, when the session has a record folder.
 
 from __future__ import annotations
 
+import inspect
 import json
 import logging
-import queue
 import tempfile
 import threading
 import time
@@ -61,6 +66,15 @@ CHART_LENGTH = 600
 """Samples kept per strip chart (one every :data:`CHART_PERIOD` of simulated time)."""
 CHART_PERIOD = 0.01
 """Simulated time between two strip-chart samples [s]."""
+PUBLISH_PERIOD = 1.0 / 30.0
+"""Wall-clock time between two snapshots the loop publishes [s] (the page's frame rate)."""
+PANEL_PERIOD = 0.2
+"""Wall-clock time between two refreshes of a snapshot's task panel and charts [s]."""
+RATE_WINDOW = 1.0
+"""Wall-clock window of the real-time factor a snapshot shows [s]."""
+PACE_SLACK = 0.1
+"""How far behind the deadline clock the paced loop may fall before it restarts the clock
+instead of catching up [s]."""
 SEGMENT_DURATION = 1e7
 """Duration given to :func:`~hqp.sim.closed_loop` [s]: a behavior runs until the page ends it."""
 
@@ -164,14 +178,18 @@ class _PushedSimulator:
         self.clock = 0.0  # control time of the step being run [s]
 
     def __getattr__(self, name: str) -> Any:
-        return getattr(self._sim, name)
+        value = getattr(self._sim, name)
+        if inspect.ismethod(value):
+            setattr(self, name, value)  # a bound method: looked up once, not at every step
+        return value
 
     def step(self, tau: np.ndarray | None = None, force: np.ndarray | None = None) -> None:
-        t = self.clock
-        self.pushes = [p for p in self.pushes if p[2] > t]
-        extra = sum((p[1] for p in self.pushes if p[0] <= t), np.zeros(3))
-        if np.any(extra):
-            force = extra if force is None else force + extra
+        if self.pushes:
+            t = self.clock
+            self.pushes = [p for p in self.pushes if p[2] > t]
+            extra = sum((p[1] for p in self.pushes if p[0] <= t), np.zeros(3))
+            if np.any(extra):
+                force = extra if force is None else force + extra
         self._sim.step(tau, force)
 
 
@@ -189,6 +207,7 @@ class _Run:
     steps: int = 0
     t_end: float = 0.0
     wall: float = 0.0
+    cpu: float = 0.0
     fell_at: float | None = None
     fall_reason: str | None = None
     last_input: dict[str, tuple[float, np.ndarray]] = field(default_factory=dict)
@@ -235,7 +254,8 @@ class ViewSession:
         self.record_dir = Path(record_dir)
         self.record_dir.mkdir(parents=True, exist_ok=True)
         self.runs: list[_Run] = []
-        self._commands: queue.Queue[tuple[str, Any]] = queue.Queue()
+        # appended by the page's threads, popped by the loop (deque: atomic, no lock taken)
+        self._commands: deque[tuple[str, Any]] = deque()
         self._lock = threading.Lock()
         self._snapshot: Snapshot | None = None
         self._stop = threading.Event()
@@ -246,14 +266,18 @@ class ViewSession:
         self._error: BaseException | None = None
         self._chart_t: deque[float] = deque(maxlen=CHART_LENGTH)
         self._charts = {s: deque(maxlen=CHART_LENGTH) for s in CHART_SIGNALS}
-        self._rate: deque[tuple[float, float]] = deque(maxlen=200)  # (wall, sim) pairs
-        self._published = 0.0
+        self._rate: deque[tuple[float, float]] = deque()  # (wall, sim) at each publish
+        self._next_publish = 0.0  # wall clock of the next publish [s]
+        self._next_panel = 0.0  # wall clock of the next task panel refresh [s]
+        self._rows: tuple[TaskRow, ...] = ()
+        self._chart_arrays: tuple[np.ndarray, dict[str, np.ndarray]] = (
+            np.zeros(0), {s: np.zeros(0) for s in CHART_SIGNALS})
         self._video_wanted = bool(video)
         self.video: Video | None = None
         self.video_note: str | None = None
         self.session_time = 0.0  # simulated time over every run of the session [s]
+        self.page_figures: dict[str, float] | None = None  # the page's, for the record
         self._pace = (0.0, 0.0)  # (wall clock, session time) the pacing counts from
-        self._tau_prev: np.ndarray | None = None
         self._last_report: Any = None
         self._last_jump = 0.0
         self._next_chart = 0.0
@@ -265,23 +289,23 @@ class ViewSession:
         """Start behavior ``name`` from the current state."""
         if name not in self.behaviors:
             raise UnknownName("behavior", name, self.behaviors)
-        self._commands.put(("select", name))
+        self._commands.append(("select", name))
 
     def pause(self) -> None:
         """Pause the loop."""
-        self._commands.put(("pause", None))
+        self._commands.append(("pause", None))
 
     def resume(self) -> None:
         """Resume the loop."""
-        self._commands.put(("resume", None))
+        self._commands.append(("resume", None))
 
     def single_step(self) -> None:
         """Pause, then run one control step."""
-        self._commands.put(("single", None))
+        self._commands.append(("single", None))
 
     def reset(self) -> None:
         """Put the robot back standing at rest and restart the current behavior."""
-        self._commands.put(("reset", None))
+        self._commands.append(("reset", None))
 
     def push(self, force: Any, duration: float = 0.1) -> None:
         """Push the floating base with a world force ``(3,)`` [N] for ``duration`` [s].
@@ -295,7 +319,7 @@ class ViewSession:
             raise InvalidInput(f"view: push force must be 3 finite numbers [N], got {force!r}")
         if not np.isfinite(duration) or duration <= 0.0:
             raise InvalidInput(f"view: push duration must be positive [s], got {duration}")
-        self._commands.put(("push", (f, float(duration))))
+        self._commands.append(("push", (f, float(duration))))
 
     def set_goal(self, input_name: str, value: Any) -> None:
         """Move a goal: a new sample of runtime input ``input_name`` at the current time.
@@ -308,7 +332,7 @@ class ViewSession:
         if v.shape != (3,) or not np.isfinite(v).all():
             raise InvalidInput(f"view: goal {input_name!r} must be 3 finite numbers, "
                                f"got {value!r}")
-        self._commands.put(("goal", (input_name, v)))
+        self._commands.append(("goal", (input_name, v)))
 
     def snapshot(self) -> Snapshot | None:
         """Return the last published snapshot (``None`` before the first step)."""
@@ -405,9 +429,10 @@ class ViewSession:
         run.behavior.start(self.sim.state(), 0.0)
         self._action(run, 0.0, "behavior", name=name)
         wall0 = time.perf_counter()
-        self._pace = (time.perf_counter(), 0.0)
-        self._tau_prev: np.ndarray | None = None
+        cpu0 = time.thread_time()
+        self._pace = (time.perf_counter(), self.session_time)
         self._next_chart = 0.0
+        self._next_publish = self._next_panel = 0.0
 
         def before(step: Step) -> None:
             pushed.clock = step.t
@@ -424,15 +449,16 @@ class ViewSession:
                         after_step=after, clock="steps", stop_on_fall=False)
         except _EndRun:
             pass
+        run.cpu = time.thread_time() - cpu0
         run.inputs_file.close()
 
     def _before(self, run: _Run, step: Step) -> None:
-        cmd = step.command
-        jump = 0.0 if self._tau_prev is None else float(np.max(np.abs(cmd.tau - self._tau_prev)))
-        self._tau_prev = cmd.tau
+        jumps = run.meter.jumps
+        n = len(jumps)
         run.meter.before_step(step)
-        self._last_report = cmd.report
-        self._last_jump = jump
+        self._last_report = step.command.report
+        # the meter's largest torque change of this step (none at the run's first step)
+        self._last_jump = jumps[-1][1] if len(jumps) > n else 0.0
 
     def _after(self, run: _Run, step: Step, reading: ContactReading) -> None:
         run.meter.after_step(step, reading)
@@ -453,9 +479,8 @@ class ViewSession:
             self._charts["torque_ratio"].append(run.meter.ratio)
             self._charts["torque_change_nm"].append(self._last_jump)
         now = time.perf_counter()
-        self._rate.append((now, self.session_time))
-        if now - self._published > 1.0 / 60.0:
-            self._publish(run, t)
+        if now >= self._next_publish:
+            self._publish(run, t, now)
 
     def _between_steps(self, run: _Run, pushed: _PushedSimulator, t: float) -> None:
         """Apply the commands, wait while paused, pace to the wall clock."""
@@ -468,23 +493,22 @@ class ViewSession:
             if self._single > 0:
                 self._single -= 1
                 break
-            self._publish(run, t)
+            self._publish(run, t, time.perf_counter(), panel=True)
             self._pace = (time.perf_counter(), self.session_time)
             time.sleep(0.01)
         if self.realtime:
+            # the deadline of this step: its simulated time on the wall clock of the pace
             wall0, sim0 = self._pace
             ahead = (self.session_time - sim0) - (time.perf_counter() - wall0)
             if ahead > 0.002:
                 time.sleep(ahead)
-            elif ahead < -0.1:  # slower than real time: do not try to catch up later
+            elif ahead < -PACE_SLACK:  # slower than real time: do not try to catch up later
                 self._pace = (time.perf_counter(), self.session_time)
 
     def _apply_commands(self, run: _Run, pushed: _PushedSimulator, t: float) -> None:
-        while True:
-            try:
-                kind, arg = self._commands.get_nowait()
-            except queue.Empty:
-                return
+        commands = self._commands
+        while commands:
+            kind, arg = commands.popleft()
             if kind == "pause":
                 self._paused = True
                 self._action(run, t, "pause")
@@ -569,7 +593,8 @@ class ViewSession:
                 out.append(GoalHandle(iname, ts.name, kind, tuple(float(x) for x in value)))
         return tuple(out)
 
-    def _publish(self, run: _Run, t: float) -> None:
+    def _task_rows(self, run: _Run) -> tuple[TaskRow, ...]:
+        """Return the task panel of the last step's feasibility report, with the errors."""
         report = self._last_report
         active = set(run.behavior.phase_spec.action.task_names)
         rows: list[TaskRow] = []
@@ -582,6 +607,16 @@ class ViewSession:
                     err = float(np.linalg.norm(e)) if e.size else float("nan")
                 rows.append(TaskRow(s.name, s.level, s.status.value, s.yields_to,
                                     float(s.residual), float(s.sigma_min), err))
+        return tuple(rows)
+
+    def _publish(self, run: _Run, t: float, now: float, panel: bool = False) -> None:
+        """Publish a snapshot at wall clock ``now`` [s]; the panel and charts when due or asked."""
+        self._next_publish = now + PUBLISH_PERIOD
+        if panel or now >= self._next_panel:
+            self._next_panel = now + PANEL_PERIOD
+            self._rows = self._task_rows(run)
+            self._chart_arrays = (np.asarray(self._chart_t),
+                                  {k: np.asarray(v) for k, v in self._charts.items()})
         goals = self.goal_handles(run, t)
         model = run.controller.model
         frames = {}
@@ -589,21 +624,23 @@ class ViewSession:
             frame = run.behavior.spec.tasks[g.task].frames.get("frame")
             if frame is not None:
                 frames[g.task] = tuple(float(x) for x in model.frame_placement(frame).translation)
+        rate = self._rate
+        rate.append((now, self.session_time))
+        while len(rate) > 2 and rate[1][0] <= now - RATE_WINDOW:
+            rate.popleft()
         rf = 0.0
-        if len(self._rate) > 1:
-            w0, s0 = self._rate[0]
-            w1, s1 = self._rate[-1]
-            rf = (s1 - s0) / (w1 - w0) if w1 > w0 else 0.0
+        if len(rate) > 1:
+            w0, s0 = rate[0]
+            rf = (self.session_time - s0) / (now - w0) if now > w0 else 0.0
         data = self.sim.mj_data
+        chart_t, charts = self._chart_arrays
         snap = Snapshot(
             t=t, behavior=run.name, phase=run.behavior.phase.value, paused=self._paused,
             fell=run.fall_reason, xpos=data.xpos.copy(), xmat=data.xmat.copy(),
-            tasks=tuple(rows), goals=goals, frames=frames, realtime_factor=rf,
-            steps=run.steps, chart_t=np.asarray(self._chart_t),
-            charts={k: np.asarray(v) for k, v in self._charts.items()})
+            tasks=self._rows, goals=goals, frames=frames, realtime_factor=rf,
+            steps=run.steps, chart_t=chart_t, charts=charts)
         with self._lock:
             self._snapshot = snap
-        self._published = time.perf_counter()
 
     # -- the record -------------------------------------------------------------------------
 
@@ -618,6 +655,9 @@ class ViewSession:
         for run in self.runs:
             metrics = run.meter.metrics(run.t_end, getattr(run.controller, "backend", None))
             metrics["realtime_factor"] = round(run.t_end / run.wall, 3) if run.wall > 0 else 0.0
+            # the loop thread's CPU time: its wall time less its sleeps and its waits for
+            # the GIL or a core
+            metrics["loop_cpu_s"] = round(run.cpu, 3)
             metrics.update(run.behavior.metrics())
             result = BehaviorRun(
                 behavior=run.name, robot=self.robot.name, controller=self.controller_name,
@@ -631,7 +671,7 @@ class ViewSession:
             data["inputs_file"] = str(run.inputs_path) if self._tmp is None else None
             runs.append(data)
         return {"viewer": {"robot": self.robot.name, "controller": self.controller_name,
-                           "realtime": self.realtime,
+                           "realtime": self.realtime, "page": self.page_figures,
                            "video": None if self.video is None else str(self.video.path),
                            "video_note": self.video_note},
                 "runs": runs}
