@@ -627,3 +627,45 @@ def test_a_parameter_array_edited_in_place_is_an_error():
         task.tau_max[0] = 1.0
     with pytest.raises(ValueError, match="read-only"):
         task.tau_max *= 0.7
+
+
+def test_a_task_set_seen_before_takes_its_engine_copy_again():
+    """A hand task added, removed, added again (the same object): the third task set is the
+    first one's, whose copy the engine kept (``NativeEngine.KEPT``); with it the commands,
+    the report and every task's error equal the Python step's, goals changed meanwhile
+    included."""
+    robot, nat, py = _pair("g1", "residuals", max_torque_rate=None)
+    rng = np.random.default_rng(23)
+    drift = rng.normal(scale=0.02, size=nat.model.na)  # the joints move: errors change
+    v = np.zeros(nat.model.nv)
+    v[6:] = drift
+    states = []
+    for i in range(90):
+        q = robot.q_standing.copy()
+        q[7:] += 0.001 * i * drift
+        states.append((0.001 * i, RobotState(q, v)))
+    hand = robot.hands[1]
+    tasks = {}
+    for k, (t, state) in enumerate(states):
+        if k == 10:
+            for ctrl in (nat, py):
+                _add_hand(ctrl, state, hand, [0.02, 0.0, 0.0], ramp_time=0.0, t=t)
+                tasks[id(ctrl)] = ctrl.task("hand")
+        if k == 40:
+            for ctrl in (nat, py):
+                ctrl.remove_task("hand", t=t)
+                tasks[id(ctrl)].set_goal(tasks[id(ctrl)].goal_at(t).position + [0.0, 0.0, 0.02])
+        if k == 60:
+            for ctrl in (nat, py):
+                ctrl.add_task(tasks[id(ctrl)], "operational", t=t, ramp_time=0.0)
+        a, b = nat.step(state, t), py.step(state, t)
+        if k == 20:
+            with_hand = nat.native.mirror
+        if k == 50:
+            without = nat.native.mirror
+            assert without is not with_hand
+        if k == 70:
+            assert nat.native.mirror is with_hand  # kept, not built again
+        _same_optimum(nat, py, a, b, f"t={t}", tol=1e-6, sigma_tol=1e-6, conflict_sigma=False)
+        _same_errors(nat, py, f"t={t}", tol=1e-6)
+    assert nat.native.steps == len(states)
