@@ -67,11 +67,6 @@ def test_the_stack_sets_checks_and_builds_the_threshold():
     assert stack.weak_threshold(k) == THRESHOLD  # a refused value changes nothing
 
 
-@pytest.mark.xfail(strict=False, reason=(
-    "the posture level's cost of the native x differs from run to run by up to ~2.5e-6 "
-    "relative (passes alone, failed inside the whole suite on pinocchio 4: 39294.944 against "
-    "the Python solvers' best 39294.853, spread 0.022): the solver's rounding depends on the "
-    "buffers' alignment, the open determinism defect of the native solver"))
 def test_the_native_step_filters_as_the_python_solver_on_the_same_levels():
     """The mirror's levels carry the threshold; its x equals the native solver's on the
     Python levels (1e-8 where no QP ran), its level costs those of cold solves by the Python

@@ -11,6 +11,10 @@
 #include <Eigen/QR>
 #include <Eigen/SVD>
 
+#include <cstdlib>
+#include <cstring>
+#include <new>
+#include <utility>
 #include <vector>
 
 namespace hqp {
@@ -40,42 +44,88 @@ void set_malloc_allowed(bool allowed);
 /// A shape beyond the capacity grows the storage (an allocation, which the checked build
 /// reports: a capacity computed too small is a bug, not a wrong result). Shaping does not
 /// keep the entries (as Eigen's resize).
+///
+/// The storage starts on a kWorkAlign-byte boundary in every process: Eigen's kernels split
+/// some sums where the data meets their packets' alignment (with AVX, the symmetric
+/// matrix-vector product of the tridiagonalisation in TriangularSingularValues rounds
+/// differently on a block 16 bytes off a 32-byte boundary), and malloc's blocks are only
+/// 16-byte aligned, wherever the allocation history of the process puts them
+/// (docs/concepts/architecture.md#determinism). The block comes from std::aligned_alloc and
+/// goes back to std::free, which every translation unit may call, with AVX or without.
 template <typename Scalar>
 class Work {
  public:
   using Mat = Eigen::Matrix<Scalar, Eigen::Dynamic, Eigen::Dynamic>;
   using Vec = Eigen::Matrix<Scalar, Eigen::Dynamic, 1>;
+  static constexpr std::size_t kWorkAlign = 64;
+
+  Work() = default;
+  Work(const Work& other) { *this = other; }
+  Work(Work&& other) noexcept { swap(other); }
+  Work& operator=(const Work& other) {
+    if (this != &other) {
+      reserve(other.cap_);
+      if (other.cap_) std::memcpy(buf_, other.buf_, sizeof(Scalar) * other.cap_);
+      rows_ = other.rows_;
+      cols_ = other.cols_;
+    }
+    return *this;
+  }
+  Work& operator=(Work&& other) noexcept {
+    if (this != &other) {
+      Work gone(std::move(other));
+      swap(gone);
+    }
+    return *this;
+  }
+  ~Work() { std::free(buf_); }
 
   void reserve(Index size) {
-    if (size > buf_.size()) buf_.resize(size);
+    if (size <= cap_) return;
+    // an allocation: the checked build's run-time check sees it, as Eigen's own
+    Eigen::internal::check_that_malloc_is_allowed();
+    const std::size_t bytes = sizeof(Scalar) * static_cast<std::size_t>(size);
+    const std::size_t rounded = (bytes + kWorkAlign - 1) / kWorkAlign * kWorkAlign;
+    void* block = std::aligned_alloc(kWorkAlign, rounded);
+    if (!block) throw std::bad_alloc();
+    std::free(buf_);
+    buf_ = static_cast<Scalar*>(block);
+    cap_ = size;
   }
   void reserve(Index rows, Index cols) { reserve(rows * cols); }
-  Index capacity() const { return buf_.size(); }
+  Index capacity() const { return cap_; }
 
   Eigen::Map<Mat> mat(Index rows, Index cols) {
     reserve(rows * cols);
     rows_ = rows;
     cols_ = cols;
-    return Eigen::Map<Mat>(buf_.data(), rows, cols);
+    return Eigen::Map<Mat>(buf_, rows, cols);
   }
   Eigen::Map<Vec> vec(Index size) {
     reserve(size);
     rows_ = size;
     cols_ = 1;
-    return Eigen::Map<Vec>(buf_.data(), size);
+    return Eigen::Map<Vec>(buf_, size);
   }
   /// The last shape given.
-  Eigen::Map<Mat> mat() { return Eigen::Map<Mat>(buf_.data(), rows_, cols_); }
-  Eigen::Map<const Mat> mat() const { return Eigen::Map<const Mat>(buf_.data(), rows_, cols_); }
-  Eigen::Map<Vec> vec() { return Eigen::Map<Vec>(buf_.data(), rows_ * cols_); }
-  Eigen::Map<const Vec> vec() const { return Eigen::Map<const Vec>(buf_.data(), rows_ * cols_); }
+  Eigen::Map<Mat> mat() { return Eigen::Map<Mat>(buf_, rows_, cols_); }
+  Eigen::Map<const Mat> mat() const { return Eigen::Map<const Mat>(buf_, rows_, cols_); }
+  Eigen::Map<Vec> vec() { return Eigen::Map<Vec>(buf_, rows_ * cols_); }
+  Eigen::Map<const Vec> vec() const { return Eigen::Map<const Vec>(buf_, rows_ * cols_); }
   Index rows() const { return rows_; }
   Index cols() const { return cols_; }
   Index size() const { return rows_ * cols_; }
-  Scalar* data() { return buf_.data(); }
+  Scalar* data() { return buf_; }
 
  private:
-  Vec buf_;
+  void swap(Work& other) noexcept {
+    std::swap(buf_, other.buf_);
+    std::swap(cap_, other.cap_);
+    std::swap(rows_, other.rows_);
+    std::swap(cols_, other.cols_);
+  }
+  Scalar* buf_ = nullptr;
+  Index cap_ = 0;
   Index rows_ = 0, cols_ = 0;
 };
 
