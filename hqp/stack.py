@@ -642,7 +642,7 @@ class Stack:
         return min(max(1.0 - min_jerk((t - entry.added_at) / entry.ramp_time), 0.0), 1.0)
 
     def events(self) -> tuple[BlendEvent, ...]:
-        """The blend events recorded since the last :meth:`pop_events`."""
+        """Return the blend events recorded since the last :meth:`pop_events`."""
         return tuple(self._events)
 
     def pop_events(self) -> list[BlendEvent]:

@@ -230,8 +230,9 @@ def test_ramps_and_unloading_run_natively_and_other_changes_on_the_python_step()
 def test_the_torque_blend_after_a_release_runs_natively(name):
     """A foot released at once: the decaying-offset torque blend after the release (the
     stack's blend_time, strictness suspended) runs on the native step from its first step on
-    (the release's event), with the Python step's levels and blended command (:func:`_same_optimum` where a step is
-    degenerate; without the torque-rate level, see :func:`_pair`).
+    (the release's event), with the Python step's levels and blended command
+    (:func:`_same_optimum` where a step is degenerate; without the torque-rate level, see
+    :func:`_pair`).
 
     Released at once, not unloaded first: an unloading's last steps are ill-conditioned (the
     normal-force bound falls to zero), the two paths' solver warm starts, 1e-14 apart at its

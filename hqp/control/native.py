@@ -82,7 +82,7 @@ _FRAME_MODELS: dict[tuple[Any, ...], Any] = {}
 
 
 def _frame_model(core: Any, urdf: str, frames: list[tuple[str, str, np.ndarray]]) -> Any:
-    """The core's model of a robot, for its frame indices: one per description and module."""
+    """Return the core's model of a robot, for its frame indices: one per description and module."""
     key = (core, urdf, os.stat(urdf).st_mtime_ns) + tuple((n, p, T.tobytes())
                                                           for n, p, T in frames)
     model = _FRAME_MODELS.get(key)
