@@ -26,7 +26,6 @@ from __future__ import annotations
 import enum
 import logging
 import math
-from collections import ChainMap
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
@@ -164,6 +163,9 @@ class Behavior:
         self._started = False
         self._errors: dict[str, dict[str, dict[str, float]]] = {}
         self._entered: list[tuple[str, float]] = []
+        self._makers: dict[str, Callable[[], Any]] | None = None
+        self._env_state: RobotState | None = None
+        self._env_t = 0.0
 
     # -- public -----------------------------------------------------------------------------
 
@@ -237,7 +239,7 @@ class Behavior:
                 0.0 if status is None else status.residual))
             target = phase.safety
         else:
-            env = self._env(state, t, None)
+            env = self._env(state, t)
             for tr in phase.transitions:
                 try:
                     fire = bool(tr.when.evaluate(env))
@@ -348,18 +350,31 @@ class Behavior:
         self._entered.append((name, float(t) - self.t0))
         logger.info("t=%.3f s: phase %s", t, name)
 
-    def _env(self, state: RobotState, t: float, initial: Any) -> _LazyEnv:
-        """Return this step's expression environment (each name computed when first read)."""
+    def _env(self, state: RobotState, t: float) -> _LazyEnv:
+        """Return this step's expression environment (each name computed when first read).
+
+        The functions that compute the names are made once; they read the step's state and
+        time from the behavior, so the environment of a step is one empty dictionary.
+        """
+        self._env_state, self._env_t = state, t
+        makers = self._makers
+        if makers is None:
+            makers = self._makers = self._env_makers()
+        return _LazyEnv(makers)
+
+    def _env_makers(self) -> dict[str, Callable[[], Any]]:
+        """Return each name of the expression environment and the function computing it."""
         model = self.controller.model
         factory = self.factory
 
         def contact_flags() -> dict[str, bool]:
-            sensed = state.contacts or {}
+            state = self._env_state
+            sensed = (state.contacts if state is not None else None) or {}
             return {c: bool(sensed.get(c, False)) for c in factory.contact_names}
 
         makers: dict[str, Callable[[], Any]] = {
-            "t": lambda: float(t) - self.t0,
-            "phase_time": lambda: float(t) - self.phase_start,
+            "t": lambda: float(self._env_t) - self.t0,
+            "phase_time": lambda: float(self._env_t) - self.phase_start,
             "com": lambda: model.com.copy(),
             "com_velocity": lambda: model.com_velocity.copy(),
             "com0": lambda: self.com0,
@@ -375,20 +390,22 @@ class Behavior:
                                             factory.joint_names, "joint"),
             "joint_margin": lambda: _LazyNamespace(lambda n: factory.joint_margin(model, n),
                                                    factory.joint_names, "joint_margin"),
-            "input": lambda: _LazyNamespace(
-                lambda n: self.inputs.value(n, float(t) - self.t0), self.spec.inputs, "input"),
+            "input": lambda: self._input(float(self._env_t)),
             "frame": lambda: _LazyNamespace(lambda n: factory.frame_position(model, n),
                                             model.frame_names, "frame"),
-            "plan": lambda: self._plan(t),
+            "plan": lambda: self._plan(self._env_t),
             "pose": lambda: _LazyNamespace(self.pose, self.spec.poses, "pose"),
             "robot": lambda: Namespace(self.robot_values, "robot"),
         }
-        if initial is not None:
-            makers["initial"] = lambda: initial
         if self.standing is not None:
             standing = self.standing
             makers["standing"] = lambda: standing
-        return _LazyEnv(makers)
+        return makers
+
+    def _input(self, t: float) -> Namespace:
+        """Return the runtime inputs at time ``t`` [s] (each read when first used)."""
+        return _LazyNamespace(lambda n: self.inputs.value(n, t - self.t0), self.spec.inputs,
+                              "input")
 
     def _plan(self, t: float) -> Namespace:
         """Return the planner's values at ``t`` (each computed when first read, if it can)."""
@@ -440,7 +457,7 @@ class Behavior:
             if ts.name in fixed:
                 continue  # its goals read nothing that changed since the phase began
             if base_env is None:
-                base_env = self._env(state, t, None)
+                base_env = self._env(state, t)
             env = base_env.with_value("initial", self._initial.get(ts.name))
             values: dict[str, Any] = {}
             for gname, expr in goals.items():
@@ -511,9 +528,29 @@ class _LazyEnv(Mapping[str, Any]):
     def __len__(self) -> int:
         return len(self._makers)
 
-    def with_value(self, name: str, value: Any) -> ChainMap[str, Any]:
+    def with_value(self, name: str, value: Any) -> _WithValue:
         """Return the environment (its computed values shared) with ``name`` set to ``value``."""
-        return ChainMap({name: value}, self)
+        return _WithValue(self, name, value)
+
+
+class _WithValue(Mapping[str, Any]):
+    """An environment with one more name (or one name replaced)."""
+
+    __slots__ = ("_env", "_name", "_value")
+
+    def __init__(self, env: Mapping[str, Any], name: str, value: Any) -> None:
+        self._env, self._name, self._value = env, name, value
+
+    def __getitem__(self, name: str) -> Any:
+        if name == self._name:
+            return self._value
+        return self._env[name]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter({self._name: None, **dict.fromkeys(self._env)})
+
+    def __len__(self) -> int:
+        return len({self._name, *self._env})
 
 
 class _LazyNamespace(Namespace):
