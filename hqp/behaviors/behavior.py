@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import enum
 import logging
-import math
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
@@ -162,6 +161,7 @@ class Behavior:
         changes nothing)."""
         self._started = False
         self._errors: dict[str, dict[str, dict[str, float]]] = {}
+        self._record: _ErrorRecord | None = None
         self._entered: list[tuple[str, float]] = []
         self._makers: dict[str, Callable[[], Any]] | None = None
         self._env_state: RobotState | None = None
@@ -180,6 +180,8 @@ class Behavior:
         Errors are in task units (m for positions, rad for orientations, ...), measured at
         the control steps of the phase (``error()`` of the task after its rows were built).
         """
+        if self._record is not None:
+            self._record.flush()
         return {
             "phase_times": [{"phase": p, "t": round(t, 4)} for p, t in self._entered],
             "task_errors": {
@@ -218,15 +220,12 @@ class Behavior:
         if not self._started:
             self.start(state, t)
             return
-        record = self._errors.setdefault(self.phase.value, {})
-        names = list(self._levels)
-        norms = error_norms([self.tasks[n] for n in names]).tolist()
-        for tname, e in zip(names, norms):
-            if not math.isfinite(e):
-                continue
-            d = record.setdefault(tname, {"min": e, "final": e})
-            d["min"] = min(d["min"], e)
-            d["final"] = e
+        record = self._record
+        if record is None:  # the first step of this phase
+            record = self._record = _ErrorRecord(
+                self._errors.setdefault(self.phase.value, {}), list(self._levels),
+                [self.tasks[n] for n in self._levels])
+        record.add(error_norms(record.tasks))
         safety_task = self._feasibility(report, t)
         phase = self.phase_spec
         target = None
@@ -310,6 +309,9 @@ class Behavior:
         """Write the active task set and contacts of phase ``name``."""
         ctrl = self.controller
         new = self.spec.phases[name]
+        if self._record is not None:  # the errors of the phase left
+            self._record.flush()
+            self._record = None
         ramp = new.ramp_time if new.ramp_time is not None else self.spec.ramp_time
         # contacts: make the new ones, unload the released ones
         active = set(ctrl.active_contacts)
@@ -477,6 +479,62 @@ class Behavior:
             # copies: a value may be an array its producer updates in place
             self._goals_set[ts.name] = {k: np.array(v, copy=True) if isinstance(v, np.ndarray)
                                         else v for k, v in values.items()}
+
+
+class _ErrorRecord:
+    """Smallest and last finite error norm of each task over the steps of one phase.
+
+    Kept in arrays over the phase's tasks and merged into the phase's record (task name ->
+    ``{"min", "final"}``, a task entered when its error is first finite, as a step-by-step
+    record would enter it) by :meth:`flush`.
+
+    Args:
+        record: The phase's record, merged into.
+        names: The phase's task names ...
+        tasks: ... and tasks.
+
+    """
+
+    def __init__(self, record: dict[str, dict[str, float]], names: list[str],
+                 tasks: list[Any]) -> None:
+        self.record, self.names, self.tasks = record, names, tasks
+        n = len(names)
+        self.mins = np.full(n, np.inf)
+        self.finals = np.full(n, np.nan)
+        self.seen = np.zeros(n, dtype=bool)
+        self.first = np.zeros(n, dtype=np.int64)  # step at which each was first finite
+        self.all_seen = n == 0
+        self.k = 0
+
+    def add(self, norms: np.ndarray) -> None:
+        """Add one step's error norms ``(n,)`` (``inf`` or ``nan``: not recorded)."""
+        finite = np.isfinite(norms)
+        np.fmin(self.mins, np.where(finite, norms, np.inf), out=self.mins)
+        np.copyto(self.finals, norms, where=finite)
+        if not self.all_seen:
+            new = finite & ~self.seen
+            if new.any():
+                self.first[new] = self.k
+                self.seen |= new
+                self.all_seen = bool(self.seen.all())
+        self.k += 1
+
+    def flush(self) -> None:
+        """Merge the steps added so far into the record, and start again."""
+        index = np.flatnonzero(self.seen).tolist()
+        first = self.first.tolist()
+        mins, finals = self.mins.tolist(), self.finals.tolist()
+        for i in sorted(index, key=lambda i: (first[i], i)):
+            d = self.record.get(self.names[i])
+            if d is None:
+                self.record[self.names[i]] = {"min": mins[i], "final": finals[i]}
+            else:
+                d["min"] = min(d["min"], mins[i])
+                d["final"] = finals[i]
+        self.mins.fill(np.inf)
+        self.seen.fill(False)
+        self.all_seen = not self.names
+        self.k = 0
 
 
 _FIXED_IN_PHASE = frozenset({"com0", "feet_center", "standing", "pose", "initial", "robot"})
