@@ -220,6 +220,42 @@ def test_com_is_continuous_and_its_derivatives_are_its_own(plan) -> None:
     np.testing.assert_allclose(v, 0.0, atol=1e-3)
 
 
+def _com_state_vectors(planner: WalkPlanner, tau: float):
+    """The planned centre of mass at plan time ``tau`` as numpy vector expressions."""
+    from hqp.tasks.reference import min_jerk_profile
+
+    dt = float(planner.params["timestep"])
+    n = planner._jerks.shape[0]
+    tau = min(max(float(tau), 0.0), n * dt)
+    k = min(int(tau // dt), n - 1)
+    s = tau - k * dt
+    c, v, a = planner._states[k]
+    j = planner._jerks[k]
+    pos, vel, acc = np.empty(3), np.empty(3), np.empty(3)
+    pos[:2] = c + v * s + a * s * s / 2 + j * s**3 / 6
+    vel[:2] = v + a * s + j * s * s / 2
+    acc[:2] = a + j * s
+    if tau >= n * dt:
+        vel[:2] = 0.0
+        acc[:2] = 0.0
+    m, dm, ddm = min_jerk_profile(tau, planner.supports[0].t_end)
+    dz = planner._z1 - planner._z0
+    pos[2], vel[2], acc[2] = planner._z0 + m * dz, dm * dz, ddm * dz
+    return pos, vel, acc
+
+
+def test_com_state_is_the_vector_expression_bit_for_bit(plan) -> None:
+    _, _, planner = plan
+    dt = planner.params["timestep"]
+    rng = np.random.default_rng(1)
+    end = planner.duration + planner.params["preview_time"]
+    taus = np.concatenate([np.arange(0.0, end + 0.5, dt / 3),
+                           rng.uniform(-1.0, end + 1.0, 500)])
+    for tau in taus:
+        for x, y in zip(planner.com_state(tau), _com_state_vectors(planner, tau)):
+            assert x.tobytes() == y.tobytes(), tau
+
+
 def test_outputs_follow_the_plan_and_its_flags() -> None:
     robot, model = _standing("paper-humanoid")
     planner = _planner(robot, {"start_delay": 0.3})

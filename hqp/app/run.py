@@ -100,10 +100,11 @@ class _Meter:
     """The hooks of a behavior run: what :class:`BehaviorRun` reports, step by step."""
 
     def __init__(self, behavior: Behavior, sim: Simulator, feet: list[str], trace: bool,
-                 video: Video | None) -> None:
+                 video: Video | None, capacity: int = 0) -> None:
         self.behavior, self.sim, self.video = behavior, sim, video
         self.model = behavior.controller.model
         self.trackers = {c: FootTracker(c) for c in feet}
+        self._trackers = list(self.trackers.values())
         self.torque_ratio = 0.0
         self.clipped = 0
         self.safe_steps = 0
@@ -114,37 +115,70 @@ class _Meter:
         self.x_start = self.model.com[0]
         self.tau_prev: np.ndarray | None = None
         self.tau_jump, self.tau_jump_t = 0.0, None
-        self.jumps: list[tuple[float, float]] = []  # (t, per-step torque change) of each step
+        # per-step logs, preallocated for ``capacity`` steps (grown if a run takes more)
+        self.n_steps = 0
+        self.step_times = np.empty(capacity)  # wall-clock time of each controller step [s]
+        self.jump_t = np.empty(capacity)  # time of each per-step torque change [s] ...
+        self.jump = np.empty(capacity)  # ... and the change [N m]
+        self.n_jumps = 0
         self.landings: list[float] = []  # times a foot met the floor after a flight [s]
-        self.step_times: list[float] = []
         self.ratio = 0.0
+        self._tau_max = self.model.tau_max
+        self._tau_scale = np.maximum(self._tau_max, 1e-9)
+        self._tau_work = np.empty_like(self._tau_scale)
         self.trace: dict[str, list[Any]] | None = (
             {"t": [], "com": [], "vz": [], "feet": [], "fn": [], "tau": [], "errors": []}
             if trace else None)
 
+    def _grow(self) -> None:
+        """Double the capacity of the per-step logs."""
+        size = max(2 * self.step_times.size, 1024)
+        for name in ("step_times", "jump_t", "jump"):
+            old = getattr(self, name)
+            new = np.empty(size)
+            new[:old.size] = old
+            setattr(self, name, new)
+
     def before_step(self, step: Step) -> None:
         """Figures of the command (before MuJoCo's step)."""
         cmd, t = step.command, step.t
-        self.step_times.append(step.wall_time)
+        if self.n_steps == self.step_times.size:
+            self._grow()
+        self.step_times[self.n_steps] = step.wall_time
+        self.n_steps += 1
         if cmd.safe_mode:
             self.safe_steps += 1
-        self.ratio = float(np.max(np.abs(cmd.tau) / np.maximum(self.model.tau_max, 1e-9)))
+        if self.model.tau_max is not self._tau_max:  # (a model whose limits were replaced)
+            self._tau_max = self.model.tau_max
+            self._tau_scale = np.maximum(self._tau_max, 1e-9)
+        tau, work = cmd.tau, self._tau_work
+        np.abs(tau, out=work)
+        np.divide(work, self._tau_scale, out=work)
+        self.ratio = float(work.max())
         self.torque_ratio = max(self.torque_ratio, self.ratio)
         if self.tau_prev is not None:
-            jump = float(np.max(np.abs(cmd.tau - self.tau_prev)))
-            self.jumps.append((t, jump))
+            np.subtract(tau, self.tau_prev, out=work)
+            np.abs(work, out=work)
+            jump = float(work.max())
+            n = self.n_jumps
+            self.jump_t[n], self.jump[n] = t, jump
+            self.n_jumps = n + 1
             if jump > self.tau_jump:
                 self.tau_jump, self.tau_jump_t = jump, t
-        self.tau_prev = cmd.tau
-        if any("clipped" in note for note in cmd.report.notes):
+        self.tau_prev = tau
+        notes = cmd.report.notes
+        if notes and any("clipped" in note for note in notes):
             self.clipped += 1
 
     def after_step(self, step: Step, reading: ContactReading) -> None:
         """Figures of the new state (MuJoCo's contacts: for logs and tests only)."""
         t_new = (step.k + 1) * self.sim.dt
-        for i, tr in enumerate(self.trackers.values()):
-            tr.update(bool(reading.foot_contact[i]), reading.foot_position[i], t_new)
-        airborne = not any(bool(c) for c in reading.foot_contact[:len(self.trackers)])
+        contact = reading.foot_contact.tolist()
+        positions = reading.foot_position
+        trackers = self._trackers
+        for i, tr in enumerate(trackers):
+            tr.update(contact[i], positions[i], t_new)
+        airborne = not any(contact[:len(trackers)])
         if airborne and not self.flight:
             self.flight, self.flight_start = True, t_new
         elif not airborne and self.flight:
@@ -152,7 +186,7 @@ class _Meter:
             self.max_flight = max(self.max_flight, t_new - self.flight_start)
             self.landings.append(t_new)
         if airborne:
-            self.clearance = max(self.clearance, float(np.min(reading.foot_position[:, 2])))
+            self.clearance = max(self.clearance, float(positions[:, 2].min()))
         if self.trace is not None:
             for key, value in (("t", t_new), ("com", self.model.com[2]),
                                ("vz", self.model.com_velocity[2]),
@@ -164,7 +198,8 @@ class _Meter:
         if planner is not None and planner.planned:
             if planner.output("started", step.t) and not planner.output("done", step.t):
                 com = planner.output("com", step.t)
-                err = float(np.linalg.norm(self.model.com[:2] - com[:2]))
+                d = self.model.com[:2] - com[:2]
+                err = float(np.sqrt(d.dot(d)))  # (np.linalg.norm's operations)
                 if err > self.com_err_max:
                     self.com_err_max, self.com_err_t = err, step.t
         self.pelvis_min = min(self.pelvis_min, self.sim.base_height())
@@ -191,8 +226,9 @@ class _Meter:
             "flight_time_s": round(self.max_flight, 4),
             "flight_clearance_m": round(self.clearance, 4),
             "pelvis_min_m": round(float(self.pelvis_min), 4),
-            "step_time_median_ms": (round(1e3 * float(np.median(self.step_times)), 3)
-                                    if self.step_times else 0),
+            "step_time_median_ms": (
+                round(1e3 * float(np.median(self.step_times[:self.n_steps])), 3)
+                if self.n_steps else 0),
             "backend": backend,
             "video": None,
         }
@@ -208,9 +244,9 @@ class _Meter:
         change, ``max_torque_jump_outside_impacts_nm`` is the largest of the other steps.
         """
         impacts = []
-        inside = np.zeros(len(self.jumps), dtype=bool)
-        t = np.array([tj for tj, _ in self.jumps])
-        jump = np.array([j for _, j in self.jumps])
+        inside = np.zeros(self.n_jumps, dtype=bool)
+        t = self.jump_t[:self.n_jumps]
+        jump = self.jump[:self.n_jumps]
         for t_land in self.landings:
             window = (t >= t_land - 1e-9) & (t <= t_land + IMPACT_WINDOW_S + 1e-9)
             inside |= window
@@ -293,7 +329,8 @@ def run_behavior(
     behavior.start(sim.state(), 0.0)
     recorder = (None if video is None
                 else Video(sim, video, distance=3.5, azimuth=120.0, elevation=-15.0))
-    meter = _Meter(behavior, sim, list(robot_obj.feet), plot is not None, recorder)
+    meter = _Meter(behavior, sim, list(robot_obj.feet), plot is not None, recorder,
+                   capacity=int(round(total / sim.dt)))
     fallbacks = last_resort_count()
     outcome = closed_loop(sim, behavior, total, before_step=meter.before_step,
                           after_step=meter.after_step, clock="steps", stop_on_fall=stop_on_fall,

@@ -25,8 +25,6 @@ from __future__ import annotations
 
 import enum
 import logging
-import math
-from collections import ChainMap
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
@@ -163,7 +161,11 @@ class Behavior:
         changes nothing)."""
         self._started = False
         self._errors: dict[str, dict[str, dict[str, float]]] = {}
+        self._record: _ErrorRecord | None = None
         self._entered: list[tuple[str, float]] = []
+        self._makers: dict[str, Callable[[], Any]] | None = None
+        self._env_state: RobotState | None = None
+        self._env_t = 0.0
 
     # -- public -----------------------------------------------------------------------------
 
@@ -178,6 +180,8 @@ class Behavior:
         Errors are in task units (m for positions, rad for orientations, ...), measured at
         the control steps of the phase (``error()`` of the task after its rows were built).
         """
+        if self._record is not None:
+            self._record.flush()
         return {
             "phase_times": [{"phase": p, "t": round(t, 4)} for p, t in self._entered],
             "task_errors": {
@@ -216,15 +220,12 @@ class Behavior:
         if not self._started:
             self.start(state, t)
             return
-        record = self._errors.setdefault(self.phase.value, {})
-        names = list(self._levels)
-        norms = error_norms([self.tasks[n] for n in names]).tolist()
-        for tname, e in zip(names, norms):
-            if not math.isfinite(e):
-                continue
-            d = record.setdefault(tname, {"min": e, "final": e})
-            d["min"] = min(d["min"], e)
-            d["final"] = e
+        record = self._record
+        if record is None:  # the first step of this phase
+            record = self._record = _ErrorRecord(
+                self._errors.setdefault(self.phase.value, {}), list(self._levels),
+                [self.tasks[n] for n in self._levels])
+        record.add(error_norms(record.tasks))
         safety_task = self._feasibility(report, t)
         phase = self.phase_spec
         target = None
@@ -237,7 +238,7 @@ class Behavior:
                 0.0 if status is None else status.residual))
             target = phase.safety
         else:
-            env = self._env(state, t, None)
+            env = self._env(state, t)
             for tr in phase.transitions:
                 try:
                     fire = bool(tr.when.evaluate(env))
@@ -308,6 +309,9 @@ class Behavior:
         """Write the active task set and contacts of phase ``name``."""
         ctrl = self.controller
         new = self.spec.phases[name]
+        if self._record is not None:  # the errors of the phase left
+            self._record.flush()
+            self._record = None
         ramp = new.ramp_time if new.ramp_time is not None else self.spec.ramp_time
         # contacts: make the new ones, unload the released ones
         active = set(ctrl.active_contacts)
@@ -348,18 +352,31 @@ class Behavior:
         self._entered.append((name, float(t) - self.t0))
         logger.info("t=%.3f s: phase %s", t, name)
 
-    def _env(self, state: RobotState, t: float, initial: Any) -> _LazyEnv:
-        """Return this step's expression environment (each name computed when first read)."""
+    def _env(self, state: RobotState, t: float) -> _LazyEnv:
+        """Return this step's expression environment (each name computed when first read).
+
+        The functions that compute the names are made once; they read the step's state and
+        time from the behavior, so the environment of a step is one empty dictionary.
+        """
+        self._env_state, self._env_t = state, t
+        makers = self._makers
+        if makers is None:
+            makers = self._makers = self._env_makers()
+        return _LazyEnv(makers)
+
+    def _env_makers(self) -> dict[str, Callable[[], Any]]:
+        """Return each name of the expression environment and the function computing it."""
         model = self.controller.model
         factory = self.factory
 
         def contact_flags() -> dict[str, bool]:
-            sensed = state.contacts or {}
+            state = self._env_state
+            sensed = (state.contacts if state is not None else None) or {}
             return {c: bool(sensed.get(c, False)) for c in factory.contact_names}
 
         makers: dict[str, Callable[[], Any]] = {
-            "t": lambda: float(t) - self.t0,
-            "phase_time": lambda: float(t) - self.phase_start,
+            "t": lambda: float(self._env_t) - self.t0,
+            "phase_time": lambda: float(self._env_t) - self.phase_start,
             "com": lambda: model.com.copy(),
             "com_velocity": lambda: model.com_velocity.copy(),
             "com0": lambda: self.com0,
@@ -375,20 +392,22 @@ class Behavior:
                                             factory.joint_names, "joint"),
             "joint_margin": lambda: _LazyNamespace(lambda n: factory.joint_margin(model, n),
                                                    factory.joint_names, "joint_margin"),
-            "input": lambda: _LazyNamespace(
-                lambda n: self.inputs.value(n, float(t) - self.t0), self.spec.inputs, "input"),
+            "input": lambda: self._input(float(self._env_t)),
             "frame": lambda: _LazyNamespace(lambda n: factory.frame_position(model, n),
                                             model.frame_names, "frame"),
-            "plan": lambda: self._plan(t),
+            "plan": lambda: self._plan(self._env_t),
             "pose": lambda: _LazyNamespace(self.pose, self.spec.poses, "pose"),
             "robot": lambda: Namespace(self.robot_values, "robot"),
         }
-        if initial is not None:
-            makers["initial"] = lambda: initial
         if self.standing is not None:
             standing = self.standing
             makers["standing"] = lambda: standing
-        return _LazyEnv(makers)
+        return makers
+
+    def _input(self, t: float) -> Namespace:
+        """Return the runtime inputs at time ``t`` [s] (each read when first used)."""
+        return _LazyNamespace(lambda n: self.inputs.value(n, t - self.t0), self.spec.inputs,
+                              "input")
 
     def _plan(self, t: float) -> Namespace:
         """Return the planner's values at ``t`` (each computed when first read, if it can)."""
@@ -440,7 +459,7 @@ class Behavior:
             if ts.name in fixed:
                 continue  # its goals read nothing that changed since the phase began
             if base_env is None:
-                base_env = self._env(state, t, None)
+                base_env = self._env(state, t)
             env = base_env.with_value("initial", self._initial.get(ts.name))
             values: dict[str, Any] = {}
             for gname, expr in goals.items():
@@ -460,6 +479,62 @@ class Behavior:
             # copies: a value may be an array its producer updates in place
             self._goals_set[ts.name] = {k: np.array(v, copy=True) if isinstance(v, np.ndarray)
                                         else v for k, v in values.items()}
+
+
+class _ErrorRecord:
+    """Smallest and last finite error norm of each task over the steps of one phase.
+
+    Kept in arrays over the phase's tasks and merged into the phase's record (task name ->
+    ``{"min", "final"}``, a task entered when its error is first finite, as a step-by-step
+    record would enter it) by :meth:`flush`.
+
+    Args:
+        record: The phase's record, merged into.
+        names: The phase's task names ...
+        tasks: ... and tasks.
+
+    """
+
+    def __init__(self, record: dict[str, dict[str, float]], names: list[str],
+                 tasks: list[Any]) -> None:
+        self.record, self.names, self.tasks = record, names, tasks
+        n = len(names)
+        self.mins = np.full(n, np.inf)
+        self.finals = np.full(n, np.nan)
+        self.seen = np.zeros(n, dtype=bool)
+        self.first = np.zeros(n, dtype=np.int64)  # step at which each was first finite
+        self.all_seen = n == 0
+        self.k = 0
+
+    def add(self, norms: np.ndarray) -> None:
+        """Add one step's error norms ``(n,)`` (``inf`` or ``nan``: not recorded)."""
+        finite = np.isfinite(norms)
+        np.fmin(self.mins, np.where(finite, norms, np.inf), out=self.mins)
+        np.copyto(self.finals, norms, where=finite)
+        if not self.all_seen:
+            new = finite & ~self.seen
+            if new.any():
+                self.first[new] = self.k
+                self.seen |= new
+                self.all_seen = bool(self.seen.all())
+        self.k += 1
+
+    def flush(self) -> None:
+        """Merge the steps added so far into the record, and start again."""
+        index = np.flatnonzero(self.seen).tolist()
+        first = self.first.tolist()
+        mins, finals = self.mins.tolist(), self.finals.tolist()
+        for i in sorted(index, key=lambda i: (first[i], i)):
+            d = self.record.get(self.names[i])
+            if d is None:
+                self.record[self.names[i]] = {"min": mins[i], "final": finals[i]}
+            else:
+                d["min"] = min(d["min"], mins[i])
+                d["final"] = finals[i]
+        self.mins.fill(np.inf)
+        self.seen.fill(False)
+        self.all_seen = not self.names
+        self.k = 0
 
 
 _FIXED_IN_PHASE = frozenset({"com0", "feet_center", "standing", "pose", "initial", "robot"})
@@ -511,9 +586,29 @@ class _LazyEnv(Mapping[str, Any]):
     def __len__(self) -> int:
         return len(self._makers)
 
-    def with_value(self, name: str, value: Any) -> ChainMap[str, Any]:
+    def with_value(self, name: str, value: Any) -> _WithValue:
         """Return the environment (its computed values shared) with ``name`` set to ``value``."""
-        return ChainMap({name: value}, self)
+        return _WithValue(self, name, value)
+
+
+class _WithValue(Mapping[str, Any]):
+    """An environment with one more name (or one name replaced)."""
+
+    __slots__ = ("_env", "_name", "_value")
+
+    def __init__(self, env: Mapping[str, Any], name: str, value: Any) -> None:
+        self._env, self._name, self._value = env, name, value
+
+    def __getitem__(self, name: str) -> Any:
+        if name == self._name:
+            return self._value
+        return self._env[name]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter({self._name: None, **dict.fromkeys(self._env)})
+
+    def __len__(self) -> int:
+        return len({self._name, *self._env})
 
 
 class _LazyNamespace(Namespace):

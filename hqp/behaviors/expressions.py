@@ -141,25 +141,37 @@ class Expression:
     attributes: frozenset[tuple[str, str]]
 
     def __post_init__(self) -> None:
-        # ``namespace.name`` alone (most goals: ``plan.com``): read without the tree walk
-        body = self.tree.body
-        path = None
-        if isinstance(body, ast.Attribute) and isinstance(body.value, ast.Name):
-            path = (body.value.id, body.attr)
-        object.__setattr__(self, "_path", path)
+        # compiled once: the per-step evaluation runs one closure per syntax node
+        object.__setattr__(self, "_compiled", _compile(self.tree.body))
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        # the closures are not pickled: they are compiled again from the tree
+        return (Expression, (self.source, self.tree, self.names, self.attributes))
 
     def evaluate(self, env: Mapping[str, Any]) -> Any:
         """Value of the expression in ``env`` (names to values or :class:`Namespace`).
+
+        Runs the closures :func:`_compile` made of the syntax tree when the expression was
+        parsed; :func:`evaluate_tree` is the reference evaluator they follow.
 
         Raises:
             ExpressionError: Unknown name, or an operation that fails on the values.
 
         """
-        path = self._path  # type: ignore[attr-defined]
-        if path is not None and path[0] in env:
-            base = env[path[0]]
-            if isinstance(base, Namespace):
-                return base.get(path[1])
+        try:
+            return self._compiled(env)  # type: ignore[attr-defined]
+        except ExpressionError:
+            raise
+        except (TypeError, ValueError, IndexError, ZeroDivisionError, OverflowError) as exc:
+            raise ExpressionError(f"cannot evaluate {_short(self.source)!r}: {exc}") from None
+
+    def evaluate_tree(self, env: Mapping[str, Any]) -> Any:
+        """Value of the expression in ``env`` by a walk of its syntax tree (the reference).
+
+        Raises:
+            ExpressionError: As :meth:`evaluate`.
+
+        """
         try:
             return _eval(self.tree.body, env)
         except ExpressionError:
@@ -337,3 +349,133 @@ def _eval(node: ast.AST, env: Mapping[str, Any]) -> Any:
 
 def _arr(x: Any) -> Any:
     return np.asarray(x, dtype=float) if isinstance(x, (list, tuple)) else x
+
+
+Compiled = Callable[[Mapping[str, Any]], Any]
+"""An expression (or one of its nodes) compiled: ``env -> value``."""
+
+
+def _compile(node: ast.AST) -> Compiled:
+    """Return a closure computing what :func:`_eval` computes for ``node``, operation by operation.
+
+    The tree is walked once, here; each node becomes a closure over its children's, so a
+    step evaluates the same operations in the same order, on the same values, without the
+    dispatch on node types. A part that reads no name (``[0, 0, -0.12]``) is evaluated once
+    and each evaluation returns a copy of its value.
+    """
+    if isinstance(node, (ast.BinOp, ast.UnaryOp, ast.List, ast.Tuple)) and _constant(node):
+        try:
+            with np.errstate(all="ignore"):
+                value = _eval(node, {})
+        except (ExpressionError, TypeError, ValueError, IndexError, ZeroDivisionError,
+                OverflowError):
+            value = None  # (a ragged list: it fails at each evaluation, as the reference's)
+        if isinstance(value, np.ndarray):
+            return lambda env: value.copy()
+        if value is not None:
+            return lambda env: value
+    if isinstance(node, ast.Constant):
+        const = node.value
+        return lambda env: const
+    if isinstance(node, ast.Name):
+        if node.id in ("true", "True"):
+            return lambda env: True
+        if node.id in ("false", "False"):
+            return lambda env: False
+        name = node.id
+
+        def read(env: Mapping[str, Any]) -> Any:
+            try:
+                return env[name]
+            except KeyError:
+                raise ExpressionError(f"unknown name {name!r}") from None
+        return read
+    if isinstance(node, ast.Attribute):
+        base_of = _compile(node.value)
+        attr = node.attr
+        where = ast.unparse(node.value)
+        xyz = "xyz".index(attr) if attr in ("x", "y", "z") else None
+
+        def attribute(env: Mapping[str, Any]) -> Any:
+            base = base_of(env)
+            if isinstance(base, Namespace):
+                return base.get(attr)
+            if xyz is not None and isinstance(base, np.ndarray) and base.size >= 3:
+                return float(base[xyz])
+            raise ExpressionError(f"{where} has no attribute {attr!r}")
+        return attribute
+    if isinstance(node, (ast.List, ast.Tuple)):
+        elements = [_compile(e) for e in node.elts]
+        return lambda env: np.array([e(env) for e in elements], dtype=float)
+    if isinstance(node, ast.BinOp):
+        left, right, binary = _compile(node.left), _compile(node.right), _BINARY[type(node.op)]
+
+        def binop(env: Mapping[str, Any]) -> Any:
+            a = left(env)
+            b = right(env)
+            return binary(_arr(a), _arr(b))
+        return binop
+    if isinstance(node, ast.UnaryOp):
+        operand, unary = _compile(node.operand), _UNARY[type(node.op)]
+        return lambda env: unary(operand(env))
+    if isinstance(node, ast.BoolOp):
+        values = [_compile(v) for v in node.values]
+        if isinstance(node.op, ast.And):
+            def conjunction(env: Mapping[str, Any]) -> bool:
+                for v in values:
+                    if not bool(v(env)):
+                        return False
+                return True
+            return conjunction
+
+        def disjunction(env: Mapping[str, Any]) -> bool:
+            for v in values:
+                if bool(v(env)):
+                    return True
+            return False
+        return disjunction
+    if isinstance(node, ast.Compare):
+        first = _compile(node.left)
+        chain = [(_COMPARE[type(op)], _compile(c)) for op, c in zip(node.ops, node.comparators)]
+        if len(chain) == 1:
+            (compare, second), = chain
+            return lambda env: bool(compare(first(env), second(env)))
+
+        def comparison(env: Mapping[str, Any]) -> bool:
+            left = first(env)
+            for compare, comp in chain:
+                right = comp(env)
+                if not bool(compare(left, right)):
+                    return False
+                left = right
+            return True
+        return comparison
+    if isinstance(node, ast.IfExp):
+        test, body, orelse = _compile(node.test), _compile(node.body), _compile(node.orelse)
+        return lambda env: body(env) if test(env) else orelse(env)
+    if isinstance(node, ast.Subscript):
+        base_of = _compile(node.value)
+        if isinstance(node.slice, ast.Slice):
+            lower = None if node.slice.lower is None else _compile(node.slice.lower)
+            upper = None if node.slice.upper is None else _compile(node.slice.upper)
+            stepped = node.slice.step is not None
+
+            def sliced(env: Mapping[str, Any]) -> Any:
+                base = base_of(env)
+                lo = None if lower is None else int(lower(env))
+                hi = None if upper is None else int(upper(env))
+                if stepped:
+                    raise ExpressionError("slices with a step are not allowed")
+                return np.asarray(base)[lo:hi]
+            return sliced
+        index_of = _compile(node.slice)
+
+        def indexed(env: Mapping[str, Any]) -> Any:
+            base = base_of(env)
+            return base[int(index_of(env))]
+        return indexed
+    if isinstance(node, ast.Call):
+        function = FUNCTIONS[node.func.id]  # type: ignore[attr-defined]
+        arguments = [_compile(a) for a in node.args]
+        return lambda env: function(*[a(env) for a in arguments])
+    raise ExpressionError(f"{type(node).__name__} is not allowed")  # pragma: no cover

@@ -520,22 +520,24 @@ class WalkPlanner:
         tau = min(max(float(tau), 0.0), n * dt)
         k = min(int(tau // dt), n - 1)
         s = tau - k * dt
-        c, v, a = self._states[k]
-        j = self._jerks[k]
-        pos = np.empty(3)
-        vel = np.empty(3)
-        acc = np.empty(3)
-        pos[:2] = c + v * s + a * s * s / 2 + j * s**3 / 6
-        vel[:2] = v + a * s + j * s * s / 2
-        acc[:2] = a + j * s
+        # the cubic per axis in Python floats: the operations, in the order, of the
+        # vector expression c + v s + a s s / 2 + j s^3 / 6 (a few floats: no numpy calls)
+        (cx, cy), (vx, vy), (ax, ay) = self._states[k].tolist()
+        jx, jy = self._jerks[k].tolist()
+        s3 = s**3
+        pos = [cx + vx * s + ax * s * s / 2 + jx * s3 / 6,
+               cy + vy * s + ay * s * s / 2 + jy * s3 / 6, 0.0]
         if tau >= n * dt:
-            vel[:2] = 0.0
-            acc[:2] = 0.0
+            vel = [0.0, 0.0, 0.0]
+            acc = [0.0, 0.0, 0.0]
+        else:
+            vel = [vx + ax * s + jx * s * s / 2, vy + ay * s + jy * s * s / 2, 0.0]
+            acc = [ax + jx * s, ay + jy * s, 0.0]
         ramp = self.supports[0].t_end
         m, dm, ddm = min_jerk_profile(tau, ramp)
         dz = self._z1 - self._z0
         pos[2], vel[2], acc[2] = self._z0 + m * dz, dm * dz, ddm * dz
-        return pos, vel, acc
+        return np.array(pos), np.array(vel), np.array(acc)
 
     def support_at(self, tau: float) -> Support:
         """Return the support phase at plan time ``tau`` [s] (first or last outside the plan)."""

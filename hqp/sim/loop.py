@@ -240,37 +240,46 @@ def closed_loop(
     sensed = sense if noise is not None or delay_steps else None
     outcome = Outcome()
     next_event, n_timed = 0, len(timed)
+    next_t = timed[0].t if timed else np.inf
     steps_clock = clock == "steps"
+    hooked = before_step is not None or after_step is not None
     dt = sim.dt
     perf_counter = time.perf_counter
-    reading = sim.contacts()
+    controller_step = controller.step
+    sim_step, sim_contacts, sim_state = sim.step, sim.contacts, sim.state
+    fall_reason = sim.fall_reason
+    reading = sim_contacts()
+    k = -1
+    step: Step | None = None
     loop_start = perf_counter()
     for k in range(int(round(duration / dt))):
         t = k * dt if steps_clock else sim.time
-        if next_event < n_timed and timed[next_event].t <= t + 1e-12:
+        if next_t <= t + 1e-12:
             while next_event < n_timed and timed[next_event].t <= t + 1e-12:
                 ev = timed[next_event]
                 ev.action(sim, controller, t)
                 outcome.events.append((t, ev.name or f"event {next_event}"))
                 next_event += 1
-            reading = sim.contacts()
-        state = sim.state(reading)
-        w0 = perf_counter()
-        command = controller.step(state if sensed is None else sensed(state, t), t)
-        step = Step(k, t, state, reading, command, perf_counter() - w0)
-        if before_step is not None:
-            before_step(step)
+            next_t = timed[next_event].t if next_event < n_timed else np.inf
+            reading = sim_contacts()
+        state = sim_state(reading)
+        if hooked:
+            w0 = perf_counter()
+            command = controller_step(state if sensed is None else sensed(state, t), t)
+            step = Step(k, t, state, reading, command, perf_counter() - w0)
+            if before_step is not None:
+                before_step(step)
+        else:
+            command = controller_step(state if sensed is None else sensed(state, t), t)
         before = sim.time
-        sim.step(command.tau, push_force(pushes, t) if pushes else None)
-        reading = sim.contacts()
-        outcome.steps = k + 1
-        outcome.t_end = (k + 1) * dt if steps_clock else sim.time
+        sim_step(command.tau, push_force(pushes, t) if pushes else None)
+        reading = sim_contacts()
         if after_step is not None:
-            after_step(step, reading)
+            after_step(step, reading)  # type: ignore[arg-type]
         # MuJoCo resets a diverging simulation (state and time back to the start): the run
         # has failed there, not started again
         reason = ("the simulation diverged (MuJoCo reset its state)" if sim.time < before
-                  else sim.fall_reason(reading))
+                  else fall_reason(reading))
         if reason is not None and outcome.fell_at is None:
             outcome.fell_at, outcome.fall_reason = t, reason
             logger.info("t=%.3f: fell (%s)", t, reason)
@@ -278,5 +287,7 @@ def closed_loop(
                 break
         if progress is not None and k % 100 == 0:
             progress(t)
+    outcome.steps = k + 1
+    outcome.t_end = (k + 1) * dt if steps_clock else sim.time
     outcome.wall_time = perf_counter() - loop_start
     return outcome

@@ -168,13 +168,17 @@ class _Recorder:
     """The ``before_step`` hook of :func:`simulate`: one row of the :class:`Log` per step."""
 
     def __init__(self, sim: Simulator, controller: Any,
-                 on_step: Callable[[Simulator, Any], None] | None) -> None:
+                 on_step: Callable[[Simulator, Any], None] | None, capacity: int) -> None:
         self.sim = sim
         self.controller = controller
         self.on_step = on_step
-        self.rows: dict[str, list] = {k: [] for k in (
+        self.capacity = capacity
+        self.n = 0
+        # one array per quantity, preallocated for ``capacity`` steps at its first value
+        # (that value's shape and type: the array ``np.array`` would make of the rows)
+        self.rows: dict[str, np.ndarray | None] = dict.fromkeys((
             "t", "q", "v", "tau", "com", "base", "fc", "fp", "fn", "other", "cop", "corners",
-            "safe", "susp", "time")}
+            "safe", "susp", "time"))
         self.errors: dict[str, list[float]] = {}
         self.residuals: dict[str, list[float]] = {}
         self.status: dict[str, list[str]] = {}
@@ -183,12 +187,17 @@ class _Recorder:
         sim, cmd, reading, k = self.sim, step.command, step.reading, step.k
         for key, value in (
                 ("t", step.t), ("q", step.state.q), ("v", step.state.v),
-                ("tau", np.array(cmd.tau)), ("com", sim.com()), ("base", sim.base_height()),
+                ("tau", cmd.tau), ("com", sim.com()), ("base", sim.base_height()),
                 ("fc", reading.foot_contact), ("fp", reading.foot_position),
                 ("fn", reading.normal_force), ("other", bool(reading.other_contact)),
                 ("cop", reading.cop), ("corners", sim.sole_corners()), ("safe", cmd.safe_mode),
                 ("susp", cmd.report.strictness_suspended), ("time", step.wall_time)):
-            self.rows[key].append(value)
+            rows = self.rows[key]
+            if rows is None:
+                first = np.asarray(value)
+                rows = self.rows[key] = np.empty((self.capacity, *first.shape), first.dtype)
+            rows[k] = value
+        self.n = k + 1
         for s in cmd.report.tasks:
             if s.name not in self.status:
                 self.status[s.name] = [""] * k
@@ -209,15 +218,16 @@ class _Recorder:
             self.on_step(sim, cmd)
 
     def log(self, robot: Robot, clipped: list[int], outcome: Outcome) -> Log:
-        rows, sim, nfeet = self.rows, self.sim, len(robot.feet)
+        sim, nfeet, n = self.sim, len(robot.feet), self.n
 
         def arr(key: str, shape: tuple[int, ...]) -> np.ndarray:
-            return np.array(rows[key]) if rows[key] else np.zeros((0, *shape))
+            rows = self.rows[key]
+            return rows[:n] if rows is not None and n else np.zeros((0, *shape))
 
         # Support margin: CoM inside the hull of the sole corners of the feet in contact.
-        margins = np.full(len(rows["t"]), np.nan)
-        for i, (corners, touching, com) in enumerate(zip(rows["corners"], rows["fc"],
-                                                         rows["com"])):
+        margins = np.full(n, np.nan)
+        for i, (corners, touching, com) in enumerate(zip(arr("corners", ()), arr("fc", ()),
+                                                         arr("com", ()))):
             if np.any(touching):
                 margins[i] = inside_polygon(com[:2], corners[touching].reshape(-1, 3)[:, :2])
         return Log(
@@ -286,7 +296,7 @@ def simulate(
         sim.reset(q0, v0)
     elif q0 is not None or v0 is not None:
         sim.reset(q0, v0)
-    recorder = _Recorder(sim, controller, on_step)
+    recorder = _Recorder(sim, controller, on_step, int(round(duration / sim.dt)))
     clipped: list[int] = []
     outcome = closed_loop(
         sim, controller, duration, events, noise=noise, delay_steps=delay_steps,

@@ -345,12 +345,13 @@ class Simulator:
         mujoco = self._mujoco
         m, d = self.mj_model, self.mj_data
         nfeet = len(self._foot_sites)
-        touching = np.zeros(nfeet, dtype=bool)
-        normal = np.zeros(nfeet)
+        touching_feet = [False] * nfeet
+        normal_sums = [0.0] * nfeet  # (Python floats add as numpy's float64 do)
         others: set[str] = set()
         fz_sum = 0.0
         moment = np.zeros(2)
-        if d.ncon:  # a few contacts: Python ints and floats beat numpy calls
+        ncon = d.ncon
+        if ncon:  # a few contacts: Python ints and floats beat numpy calls
             contact = d.contact
             role = self._geom_roles
             on_foot: list[int] = []  # contact indices
@@ -371,10 +372,16 @@ class Simulator:
             if on_foot:
                 fn = self._normal_forces(contact, on_foot)
                 for foot, f in zip(foot_of, fn.tolist()):  # in contact order
-                    touching[foot] = True
-                    normal[foot] += f
+                    touching_feet[foot] = True
+                    normal_sums[foot] += f
                 fz_sum = float(fn.sum())
-                moment = fn @ contact.pos[on_foot, :2]
+                # every contact on a foot (the common case): the same contiguous copy of the
+                # points as the indexed one, without the index
+                points = (np.ascontiguousarray(contact.pos[:, :2]) if len(on_foot) == ncon
+                          else contact.pos[on_foot, :2])
+                moment = fn @ points
+        touching = np.array(touching_feet, dtype=bool)
+        normal = np.array(normal_sums)
         feet = d.site_xpos[self._foot_site_index]  # (a copy)
         if self._welds.size:  # the welds carry the support: their wrenches give force and CoP
             wrenches = self.foot_wrenches()
@@ -395,12 +402,12 @@ class Simulator:
         ``mj_contactForce``), without one call per contact.
         """
         efc = self.mj_data.efc_force
-        address = contact.efc_address  # type: ignore[attr-defined]
-        dim = contact.dim  # type: ignore[attr-defined]
+        address = contact.efc_address.tolist()  # type: ignore[attr-defined]
+        dim = contact.dim.tolist()  # type: ignore[attr-defined]
         pyramidal = self._pyramidal
         out = []
         for i in which:
-            a, n = int(address[i]), int(dim[i])
+            a, n = address[i], dim[i]
             if a < 0:
                 out.append(0.0)
             elif n == 1 or not pyramidal:

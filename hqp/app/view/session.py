@@ -453,12 +453,12 @@ class ViewSession:
         run.inputs_file.close()
 
     def _before(self, run: _Run, step: Step) -> None:
-        jumps = run.meter.jumps
-        n = len(jumps)
-        run.meter.before_step(step)
+        meter = run.meter
+        n = meter.n_jumps
+        meter.before_step(step)
         self._last_report = step.command.report
         # the meter's largest torque change of this step (none at the run's first step)
-        self._last_jump = jumps[-1][1] if len(jumps) > n else 0.0
+        self._last_jump = float(meter.jump[n]) if meter.n_jumps > n else 0.0
 
     def _after(self, run: _Run, step: Step, reading: ContactReading) -> None:
         run.meter.after_step(step, reading)
