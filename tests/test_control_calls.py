@@ -6,6 +6,7 @@ counted) between the entry and the return of ``controller.step``, step by step, 
 """
 
 import collections
+import gc
 import sys
 
 import numpy as np
@@ -35,11 +36,17 @@ class _Counter:
                 n += 1
                 names[frame.f_code.co_qualname] += 1
 
+        # the cyclic collector off: a collection inside the step would run other objects'
+        # finalizers, which are not the step's calls
+        collecting = gc.isenabled()
+        gc.disable()
         sys.setprofile(profile)
         try:
             return _ORIGINAL_STEP(controller, state, t)
         finally:
             sys.setprofile(None)
+            if collecting:
+                gc.enable()
             self.counts.append(n)
             self.names.append(names)
 
