@@ -395,7 +395,7 @@ class NativeStepMirror:
             elif trajectory is pushed[i]:
                 continue  # a bundled trajectory's end, held: pushed when it was reached
             if kind == "momentum":
-                g = task._goal if task._trajectory is None else task._trajectory.sample(t)
+                g = task._goal if trajectory is None else trajectory.sample(t)
                 pushed[i] = g
                 s.set_goal(handle, g.position, g.velocity, np.zeros_like(g.velocity))
                 continue

@@ -45,7 +45,7 @@ from hqp.control.resolver import HQPResolver, Resolver
 from hqp.errors import InvalidInput
 from hqp.model.layout import Layout
 from hqp.solver import Level
-from hqp.stack import BuiltStack, Stack, TaskSpan
+from hqp.stack import BlendEvent, BuiltStack, Stack, TaskSpan
 from hqp.tasks.base import Category, Rows
 from hqp.tasks.dynamics import joint_torques, torque_map
 from hqp.tasks.reference import min_jerk
@@ -669,16 +669,14 @@ class WholeBodyController(Controller):
         self._blend_start = float(t)
         self._blend_delta = None  # set by _blend at this step (needs the new torques)
         self._blend_notes = tuple(e.note for e in events)
-        contacts = {e.contact for e in events}
-        self._blend_contact = contacts.pop() if len(events) == 1 and None not in contacts else None
+        self._blend_contact = _contact_made(events)
 
     def _blends_hierarchies(self) -> bool:
         """Whether the blend events waiting start a blend between two hierarchies.
 
         A contact made alone, with torques sent before it (:meth:`_start_blend`).
         """
-        events = self.stack.events()
-        return (len(events) == 1 and events[0].contact is not None
+        return (_contact_made(self.stack.events()) is not None
                 and self.last_tau is not None and self.stack.blend_time > 0.0)
 
     def _start_safe_blend(self, t: float, safe: bool) -> None:
@@ -747,3 +745,8 @@ class WholeBodyController(Controller):
             last = self.last_tau if self.last_tau is not None else tau
             self._blend_delta = last - tau
         return tau + (1.0 - s) * self._blend_delta, True
+
+
+def _contact_made(events: Sequence[BlendEvent]) -> str | None:
+    """Return the contact made when it is the only blend event (else ``None``)."""
+    return events[0].contact if len(events) == 1 else None
